@@ -1,0 +1,205 @@
+//! The cloth components: [`Cloth`], [`ClothParams`], [`ClothStats`].
+
+use core::time::Duration;
+
+use bevy::prelude::*;
+
+use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
+use crate::solver::{SpringStiffness, StepParams};
+
+/// A simulated cloth: its model (topology, masses, pins) and its state
+/// (world-space positions and velocities).
+///
+/// Spawn it with a method component ([`ImplicitSolver`](super::ImplicitSolver),
+/// [`PbdSolver`](super::PbdSolver)) and a [`Transform`]: on its first step the
+/// rest shape is placed by the entity's global transform, and from then on
+/// the pinned vertices follow that transform while the others are simulated
+/// in world space. [`ClothParams`] and [`ClothStats`] are added automatically.
+///
+/// ```
+/// use bevy::prelude::*;
+/// use bevy_cloth::prelude::*;
+///
+/// fn spawn(mut commands: Commands) {
+///     let cloth = Cloth::new(ClothBuilder::lab().build().unwrap());
+///     commands.spawn((cloth, ImplicitSolver::chebyshev(32, 0.995), Transform::default()));
+/// }
+/// # bevy::ecs::system::assert_is_system(spawn);
+/// ```
+#[derive(Component, Reflect, Clone, Debug, Default)]
+#[reflect(Component, Default, Debug)]
+#[require(ClothParams, ClothStats, Transform)]
+pub struct Cloth {
+    #[reflect(ignore)]
+    pub(crate) model: ClothModel,
+    #[reflect(ignore)]
+    pub(crate) state: ClothState,
+    #[reflect(ignore)]
+    pub(crate) last_good: ClothState,
+    pub(crate) initialized: bool,
+}
+
+impl Cloth {
+    /// A cloth of this model; it is placed at its entity's transform on the
+    /// first fixed step.
+    pub fn new(model: ClothModel) -> Self {
+        Self { model, ..default() }
+    }
+
+    /// Builds the model and wraps it.
+    pub fn build(builder: ClothBuilder) -> Result<Self, ClothBuildError> {
+        builder.build().map(Self::new)
+    }
+
+    /// The model: topology, masses, pins.
+    #[inline]
+    pub fn model(&self) -> &ClothModel {
+        &self.model
+    }
+
+    /// The current state. Empty until the cloth's first fixed step.
+    #[inline]
+    pub fn state(&self) -> &ClothState {
+        &self.state
+    }
+
+    /// Mutable state, for teleporting or nudging vertices by hand. Changing
+    /// its length is caught by the solvers as a typed error.
+    #[inline]
+    pub fn state_mut(&mut self) -> &mut ClothState {
+        &mut self.state
+    }
+
+    /// World-space vertex positions (empty before the first fixed step).
+    #[inline]
+    pub fn positions(&self) -> &[Vec3A] {
+        &self.state.positions
+    }
+
+    /// True once the cloth has been placed in the world.
+    #[inline]
+    pub fn is_initialized(&self) -> bool {
+        self.initialized
+    }
+
+    /// Puts the cloth back to its rest shape at its entity's transform on the
+    /// next fixed step.
+    pub fn reset(&mut self) {
+        self.initialized = false;
+    }
+}
+
+/// Physical parameters of a cloth. The time step is the schedule's
+/// (`Time<Fixed>` in `FixedUpdate`). Defaults are the lab's.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct ClothParams {
+    /// Spring stiffness per kind (the lab: 8000 for all).
+    #[reflect(remote = crate::ecs::reflect::SpringStiffnessReflect)]
+    pub stiffness: SpringStiffness,
+    /// Velocity multiplier per step, in `[0, 1]` (the lab: 0.99).
+    pub damping: f32,
+    /// Gravitational acceleration (the lab: `(0, −9.8, 0)`).
+    pub gravity: Vec3,
+}
+
+impl Default for ClothParams {
+    fn default() -> Self {
+        let lab = StepParams::LAB;
+        Self {
+            stiffness: lab.stiffness,
+            damping: lab.damping,
+            gravity: lab.gravity,
+        }
+    }
+}
+
+impl ClothParams {
+    /// The solver parameters for a step of `dt` seconds.
+    pub fn step_params(&self, dt: f32) -> StepParams {
+        StepParams {
+            dt,
+            stiffness: self.stiffness,
+            damping: self.damping,
+            gravity: self.gravity,
+        }
+    }
+
+    /// These parameters with one stiffness for every spring kind.
+    pub fn with_stiffness(mut self, k: f32) -> Self {
+        self.stiffness = SpringStiffness::uniform(k);
+        self
+    }
+
+    /// These parameters with another damping.
+    pub fn with_damping(mut self, damping: f32) -> Self {
+        self.damping = damping;
+        self
+    }
+
+    /// These parameters with another gravity.
+    pub fn with_gravity(mut self, gravity: Vec3) -> Self {
+        self.gravity = gravity;
+        self
+    }
+}
+
+/// Whether a cloth is being simulated.
+#[derive(Reflect, Clone, Debug, Default, PartialEq)]
+pub enum ClothStatus {
+    /// Simulated normally.
+    #[default]
+    Running,
+    /// Skipped because its parameters are invalid; the text says why. It
+    /// resumes by itself once they are fixed.
+    Invalid(String),
+    /// Stopped by the divergence guard, at its last good state; call
+    /// [`ClothStats::resume`] (or [`Cloth::reset`] and resume) to go on.
+    Diverged(DivergenceReason),
+}
+
+/// Why the divergence guard stopped a cloth.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DivergenceReason {
+    /// A position or velocity became NaN or infinite.
+    NonFinite,
+}
+
+/// What the last step of a cloth did. Updated every fixed step.
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct ClothStats {
+    /// The method that stepped the cloth last (for example `"implicit"`).
+    pub method: &'static str,
+    /// Completed steps since the cloth was spawned.
+    pub steps: u64,
+    /// Wall-clock time of the last solver step (collision excluded).
+    pub step_time: Duration,
+    /// Solver iterations in the last step.
+    pub iterations: u32,
+    /// The method's convergence measure (gradient norm for the implicit
+    /// solver), if it has one.
+    pub residual: Option<f32>,
+    /// Largest relative spring elongation `(l − L)/L` after the step.
+    pub max_stretch: f32,
+    /// Total mechanical energy after the step (kinetic + spring +
+    /// gravitational).
+    pub energy: f64,
+    /// Vertex–collider contacts resolved in the last step.
+    pub contacts: u32,
+    /// Whether the cloth is simulated.
+    pub status: ClothStatus,
+}
+
+impl ClothStats {
+    /// True if the cloth is being simulated.
+    #[inline]
+    pub fn is_running(&self) -> bool {
+        self.status == ClothStatus::Running
+    }
+
+    /// Lets a cloth stopped by the divergence guard run again.
+    pub fn resume(&mut self) {
+        self.status = ClothStatus::Running;
+    }
+}

@@ -1,0 +1,170 @@
+//! The core plugin: sets, registration, placing and pinning cloths, and the
+//! divergence guard.
+
+use bevy::ecs::intern::Interned;
+use bevy::ecs::schedule::ScheduleLabel;
+use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
+use bevy::utils::Parallel;
+
+use super::reflect::SpringStiffnessReflect;
+use super::{
+    Cloth, ClothDiverged, ClothMethods, ClothParams, ClothStats, ClothStatus, ClothSystems,
+    DivergenceReason,
+};
+use crate::model::ClothState;
+use crate::solver;
+
+/// Registers the cloth components and messages, configures
+/// [`ClothSystems`] in the schedule, places new cloths, moves pinned vertices
+/// and runs the divergence guard. Every method plugin adds it if missing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ClothCorePlugin {
+    schedule: Interned<dyn ScheduleLabel>,
+}
+
+impl ClothCorePlugin {
+    /// Runs the cloth systems in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+        }
+    }
+}
+
+impl Default for ClothCorePlugin {
+    /// `FixedUpdate`.
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl Plugin for ClothCorePlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<Cloth>()
+            .register_type::<ClothParams>()
+            .register_type::<ClothStats>()
+            .register_type::<SpringStiffnessReflect>()
+            .init_resource::<ClothMethods>()
+            .add_message::<ClothDiverged>()
+            .configure_sets(
+                self.schedule,
+                (
+                    ClothSystems::First,
+                    ClothSystems::SyncIn,
+                    ClothSystems::Step,
+                    ClothSystems::Collide,
+                    ClothSystems::SyncOut,
+                    ClothSystems::Last,
+                )
+                    .chain(),
+            )
+            .add_systems(
+                self.schedule,
+                (
+                    place_and_pin.in_set(ClothSystems::SyncIn),
+                    guard_and_measure.in_set(ClothSystems::SyncOut),
+                )
+                    .run_if(any_with_component::<Cloth>),
+            );
+    }
+}
+
+/// Places new cloths at their entity's transform and moves pinned vertices
+/// to where the transform puts them now (their velocity is the displacement
+/// over the step).
+///
+/// The global transform is computed here from the `Transform` hierarchy, not
+/// read from `GlobalTransform`, so a cloth spawned or moved since the last
+/// transform propagation is placed where it is now.
+fn place_and_pin(
+    time: Res<Time>,
+    helper: TransformHelper,
+    mut cloths: Query<(Entity, &mut Cloth)>,
+) {
+    let dt = time.delta_secs();
+    cloths.par_iter_mut().for_each(|(entity, mut cloth)| {
+        let Ok(global) = helper.compute_global_transform(entity) else {
+            return;
+        };
+        let affine = global.affine();
+        let cloth = &mut *cloth;
+        if !cloth.initialized {
+            cloth.state = ClothState::at_rest(&cloth.model, &affine);
+            cloth.last_good.copy_from(&cloth.state);
+            cloth.initialized = true;
+            return;
+        }
+        let rest = cloth.model.topology().rest_positions();
+        for &p in cloth.model.pins() {
+            let p = p as usize;
+            let target = affine.transform_point3a(rest[p].into());
+            let old = cloth.state.positions[p];
+            if dt > 0.0 {
+                cloth.state.velocities[p] = (target - old) / dt;
+            }
+            cloth.state.positions[p] = target;
+        }
+    });
+}
+
+/// The divergence guard and the after-step statistics: a cloth whose state
+/// went non-finite gets its last good state back, is stopped, and a
+/// [`ClothDiverged`] message names it.
+fn guard_and_measure(
+    time: Res<Time>,
+    mut cloths: Query<(Entity, &mut Cloth, &ClothParams, &mut ClothStats)>,
+    mut diverged: Local<Parallel<Vec<ClothDiverged>>>,
+    mut messages: MessageWriter<ClothDiverged>,
+) {
+    let dt = time.delta_secs();
+    if dt <= 0.0 {
+        return;
+    }
+    cloths
+        .par_iter_mut()
+        .for_each(|(entity, mut cloth, params, mut stats)| {
+            if !cloth.initialized || !stats.is_running() {
+                return;
+            }
+            let params = params.step_params(dt);
+            let stretch = solver::max_stretch(&cloth.model, &cloth.state.positions);
+            let energy = solver::energy(&cloth.model, &cloth.state, &params);
+            if stretch.is_finite() && energy.is_finite() && cloth.state.is_finite() {
+                stats.max_stretch = stretch;
+                stats.energy = energy;
+                return;
+            }
+            let cloth = &mut *cloth;
+            cloth.state.copy_from(&cloth.last_good);
+            let reason = DivergenceReason::NonFinite;
+            stats.status = ClothStatus::Diverged(reason);
+            warn!(
+                "cloth {entity} diverged under method '{}' at step {}: {reason:?}; restored its last good state and stopped it",
+                stats.method, stats.steps
+            );
+            diverged.borrow_local_mut().push(ClothDiverged {
+                entity,
+                method: stats.method,
+                reason,
+                step: stats.steps,
+            });
+        });
+    let mut found: Vec<ClothDiverged> = diverged.drain().collect();
+    found.sort_by_key(|d| d.entity);
+    messages.write_batch(found);
+}
+
+impl ClothCorePlugin {
+    pub(crate) fn new_interned(schedule: Interned<dyn ScheduleLabel>) -> Self {
+        Self { schedule }
+    }
+
+    /// Adds the core plugin unless it is already there (method plugins call
+    /// this so each can be used on its own).
+    pub(crate) fn add_once(self, app: &mut App) {
+        if !app.is_plugin_added::<Self>() {
+            app.add_plugins(self);
+        }
+    }
+}

@@ -1,0 +1,118 @@
+//! The implicit pipeline (the lab's part 1) as a component and a plugin.
+
+use bevy::ecs::intern::Interned;
+use bevy::ecs::schedule::ScheduleLabel;
+use bevy::prelude::*;
+
+use super::ClothCorePlugin;
+use super::method::{ClothMethod, add_method};
+use crate::model::{ClothModel, ClothState};
+use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
+use crate::solver::{StepError, StepParams, StepReport};
+
+/// Chebyshev acceleration of the implicit solver (Wang 2015).
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Debug, PartialEq, Default)]
+pub struct Chebyshev {
+    /// Estimated spectral radius of the Jacobi iteration, in `(0, 1)`.
+    pub rho: f32,
+}
+
+impl Default for Chebyshev {
+    /// The lab's `ρ = 0.995`.
+    fn default() -> Self {
+        Self { rho: 0.995 }
+    }
+}
+
+/// Steps a cloth by implicit Euler with the lab's diagonal-Hessian Newton
+/// (Jacobi) iteration, optionally Chebyshev-accelerated. See
+/// [`solver::implicit`](crate::solver::implicit) for the equations.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct ImplicitSolver {
+    /// Iterations per step (the lab: 32).
+    pub iterations: u32,
+    /// Chebyshev acceleration, or `None` for plain Jacobi.
+    pub chebyshev: Option<Chebyshev>,
+}
+
+impl ImplicitSolver {
+    /// Plain Jacobi (the lab's 1.c).
+    pub const fn jacobi(iterations: u32) -> Self {
+        Self {
+            iterations,
+            chebyshev: None,
+        }
+    }
+
+    /// Chebyshev-accelerated Jacobi (the lab's 1.d).
+    pub const fn chebyshev(iterations: u32, rho: f32) -> Self {
+        Self {
+            iterations,
+            chebyshev: Some(Chebyshev { rho }),
+        }
+    }
+
+    /// The solver settings.
+    pub fn config(&self) -> ImplicitConfig {
+        ImplicitConfig {
+            iterations: self.iterations,
+            chebyshev_rho: self.chebyshev.map(|c| c.rho),
+        }
+    }
+}
+
+impl Default for ImplicitSolver {
+    /// The lab: 32 plain Jacobi iterations.
+    fn default() -> Self {
+        Self::jacobi(32)
+    }
+}
+
+impl ClothMethod for ImplicitSolver {
+    const NAME: &'static str = "implicit";
+    type Workspace = ImplicitWorkspace;
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        workspace: &mut ImplicitWorkspace,
+    ) -> Result<StepReport, StepError> {
+        implicit::step(model, state, params, &self.config(), workspace)
+    }
+}
+
+/// Adds the implicit pipeline: cloths with an [`ImplicitSolver`] are stepped
+/// in [`ClothSystems::Step`](super::ClothSystems::Step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ImplicitPlugin {
+    schedule: Interned<dyn ScheduleLabel>,
+}
+
+impl ImplicitPlugin {
+    /// Runs in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+        }
+    }
+}
+
+impl Default for ImplicitPlugin {
+    /// `FixedUpdate`.
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl Plugin for ImplicitPlugin {
+    fn build(&self, app: &mut App) {
+        ClothCorePlugin::new_interned(self.schedule).add_once(app);
+        app.register_type::<ImplicitSolver>()
+            .register_type::<Chebyshev>();
+        add_method::<ImplicitSolver>(app, self.schedule);
+    }
+}

@@ -1,0 +1,41 @@
+//! The ECS glue: components, system sets, plugins and the systems that move
+//! data between the ECS and the solvers.
+//!
+//! This layer is thin: the physics is in [`model`](crate::model),
+//! [`solver`](crate::solver) and [`collision`](crate::collision), which know
+//! nothing of entities, schedules or time.
+
+mod collision;
+mod components;
+mod core;
+mod implicit;
+mod method;
+mod pbd;
+mod reflect;
+mod schedule;
+
+use bevy::prelude::*;
+
+pub use collision::{SphereCollider, SphereCollisionPlugin, SphereResponse};
+pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};
+pub use core::ClothCorePlugin;
+pub use implicit::{Chebyshev, ImplicitPlugin, ImplicitSolver};
+pub use method::{ClothMethod, ClothMethods, ClothWorkspace};
+pub use pbd::{PbdPlugin, PbdSolver};
+pub use reflect::SpringStiffnessReflect;
+pub use schedule::ClothSystems;
+
+/// Sent when the divergence guard stops a cloth: its state went non-finite,
+/// so it was restored to its last good state and is no longer stepped
+/// (see [`ClothStatus::Diverged`]).
+#[derive(Message, Clone, Copy, Debug, PartialEq)]
+pub struct ClothDiverged {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// The method that was stepping it.
+    pub method: &'static str,
+    /// What the guard saw.
+    pub reason: DivergenceReason,
+    /// Completed steps when it happened.
+    pub step: u64,
+}

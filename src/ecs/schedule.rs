@@ -1,0 +1,35 @@
+//! System sets: the order of a cloth step inside the configured schedule.
+
+use bevy::prelude::*;
+
+/// The system sets of the cloth simulation, run in this order (chained)
+/// inside the schedule given to [`ClothPlugins`](crate::ClothPlugins)
+/// (`FixedUpdate` by default), once per fixed step:
+///
+/// 1. [`First`](Self::First): empty, for user systems that must run before
+///    the cloth step (for example moving a collider).
+/// 2. [`SyncIn`](Self::SyncIn): new cloths are placed at their entity's
+///    transform; pinned vertices move to where their entity puts them.
+/// 3. [`Step`](Self::Step): each method plugin advances the cloths that carry
+///    its solver component (the last good state is kept first).
+/// 4. [`Collide`](Self::Collide): colliders act on the stepped cloths.
+/// 5. [`SyncOut`](Self::SyncOut): the divergence guard checks every cloth
+///    (restoring and pausing one that went non-finite, and sending
+///    [`ClothDiverged`](crate::ecs::ClothDiverged)), and [`ClothStats`](crate::ecs::ClothStats)
+///    gets max stretch and energy.
+/// 6. [`Last`](Self::Last): empty, for user systems that read the result.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ClothSystems {
+    /// Empty hook before the step.
+    First,
+    /// Place new cloths, move pinned vertices.
+    SyncIn,
+    /// Advance each cloth with its method.
+    Step,
+    /// Resolve collisions.
+    Collide,
+    /// Divergence guard and statistics.
+    SyncOut,
+    /// Empty hook after the step.
+    Last,
+}

@@ -1,0 +1,132 @@
+//! Typed errors for building cloths and validating simulation parameters.
+
+use thiserror::Error;
+
+/// Why a cloth could not be built from its description.
+///
+/// Returned by [`ClothBuilder::build`](super::ClothBuilder::build) and the
+/// mesh conversions. Every invalid input maps to one variant; building never
+/// panics.
+#[derive(Error, Debug, Clone, PartialEq)]
+pub enum ClothBuildError {
+    /// The description has no vertices.
+    #[error("the cloth has no vertices")]
+    NoVertices,
+    /// A grid needs at least two vertices along each side.
+    #[error("a grid needs at least 2×2 vertices, got {rows}×{cols}")]
+    GridTooSmall {
+        /// Vertices along the first side.
+        rows: usize,
+        /// Vertices along the second side.
+        cols: usize,
+    },
+    /// The index list has a length that is not a multiple of three.
+    #[error("triangle index count {0} is not a multiple of 3")]
+    IndexCountNotMultipleOf3(usize),
+    /// A triangle refers to a vertex that does not exist.
+    #[error("triangle index {index} is out of range for {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// The offending index.
+        index: u32,
+        /// The number of vertices.
+        vertex_count: usize,
+    },
+    /// A triangle uses the same vertex twice.
+    #[error("triangle {triangle} repeats a vertex")]
+    DegenerateTriangle {
+        /// The triangle's position in the index list (index / 3).
+        triangle: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite position")]
+    NonFinitePosition {
+        /// The offending vertex.
+        vertex: usize,
+    },
+    /// A vertex mass is zero, negative or not finite.
+    #[error("vertex {vertex} has mass {mass}; masses must be finite and positive")]
+    InvalidMass {
+        /// The offending vertex (0 for a uniform or total mass).
+        vertex: usize,
+        /// The rejected mass.
+        mass: f32,
+    },
+    /// The per-vertex mass list does not have one entry per vertex.
+    #[error("{got} masses given for {vertex_count} vertices")]
+    MassCountMismatch {
+        /// Number of masses given.
+        got: usize,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A pinned vertex index does not exist.
+    #[error("pinned vertex {index} is out of range for {vertex_count} vertices")]
+    PinOutOfRange {
+        /// The offending pin.
+        index: u32,
+        /// The number of vertices.
+        vertex_count: usize,
+    },
+    /// Two vertices joined by an edge sit at the same place, so the edge has no
+    /// rest length and its direction is undefined.
+    #[error("edge ({a}, {b}) has zero rest length")]
+    ZeroLengthEdge {
+        /// First vertex of the edge.
+        a: u32,
+        /// Second vertex of the edge.
+        b: u32,
+    },
+    /// The mesh has no triangles at all (only points or lines).
+    #[error("the cloth has no triangles")]
+    NoTriangles,
+    /// A Bevy mesh could not be read (see [`MeshReadError`]).
+    #[error(transparent)]
+    Mesh(#[from] MeshReadError),
+}
+
+/// Why a Bevy [`Mesh`](bevy::mesh::Mesh) cannot be turned into a cloth.
+#[derive(Error, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshReadError {
+    /// Only triangle lists can be simulated.
+    #[error("the mesh topology is not a triangle list")]
+    NotTriangleList,
+    /// The mesh has no `Float32x3` position attribute.
+    #[error("the mesh has no Float32x3 position attribute")]
+    MissingPositions,
+    /// The mesh has no index buffer.
+    #[error("the mesh has no index buffer")]
+    MissingIndices,
+    /// The mesh data has already been moved to the render world.
+    #[error("the mesh data is no longer available in the main world")]
+    Extracted,
+}
+
+/// Why simulation parameters are invalid.
+///
+/// Returned by [`StepParams::validate`](crate::solver::StepParams::validate)
+/// and by every solver's step. Inside a running app the cloth is skipped and a
+/// warning is logged until the parameters are fixed.
+#[derive(Error, Debug, Clone, Copy, PartialEq)]
+pub enum ParamError {
+    /// The time step is zero, negative or not finite.
+    #[error("time step {0} must be finite and positive")]
+    TimeStep(f32),
+    /// A spring stiffness is zero, negative or not finite.
+    #[error("stiffness {0} must be finite and positive")]
+    Stiffness(f32),
+    /// Damping must lie in `[0, 1]` (it multiplies the velocity each step).
+    #[error("damping {0} must lie in [0, 1]")]
+    Damping(f32),
+    /// Gravity has a non-finite component.
+    #[error("gravity must be finite")]
+    Gravity,
+    /// A solver was asked for zero iterations.
+    #[error("a solver needs at least one iteration")]
+    Iterations,
+    /// Chebyshev's spectral radius estimate must lie in `(0, 1)`.
+    #[error("Chebyshev rho {0} must lie in (0, 1)")]
+    Rho(f32),
+    /// A collider radius is negative or not finite.
+    #[error("collider radius {0} must be finite and non-negative")]
+    Radius(f32),
+}

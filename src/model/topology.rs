@@ -1,0 +1,257 @@
+//! Cloth topology: rest shape, triangles, springs and the vertex→spring
+//! adjacency used by every gather-style solver loop.
+
+use bevy::math::Vec3;
+
+use super::ClothBuildError;
+
+/// What a spring models. Each kind has its own stiffness in
+/// [`SpringStiffness`](crate::solver::SpringStiffness).
+///
+/// The lab's cloth has only [`Stretch`](SpringKind::Stretch) springs: the
+/// unique edges of its triangles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum SpringKind {
+    /// An edge of the surface (triangle edges; x/y springs of a grid).
+    #[default]
+    Stretch,
+    /// A diagonal across a quad.
+    Shear,
+    /// A skip-one spring that resists folding.
+    Bend,
+}
+
+impl SpringKind {
+    /// Every kind, in a fixed order.
+    pub const ALL: [SpringKind; 3] = [SpringKind::Stretch, SpringKind::Shear, SpringKind::Bend];
+}
+
+/// A spring between vertices `a < b` with its rest length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring {
+    /// First vertex (the smaller index).
+    pub a: u32,
+    /// Second vertex (the larger index).
+    pub b: u32,
+    /// Length at rest, taken from the initial shape.
+    pub rest_length: f32,
+    /// What the spring models.
+    pub kind: SpringKind,
+}
+
+/// One spring seen from one of its vertices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Incidence {
+    /// Index of the spring in [`ClothTopology::springs`].
+    pub spring: u32,
+    /// The vertex at the other end.
+    pub other: u32,
+    /// `+1` if the vertex is the spring's `a`, `-1` if it is `b`: a per-spring
+    /// quantity computed for `a` is gathered by `b` with this sign.
+    pub sign: f32,
+}
+
+/// Vertex→spring adjacency in compressed rows: the springs of vertex `i` are
+/// `incidences[offsets[i]..offsets[i + 1]]`, in increasing spring order.
+///
+/// Solvers compute per-spring terms once, then each vertex *gathers* its own
+/// sum, so no two threads ever write the same vertex and the summation order
+/// is fixed (deterministic, no atomics).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Adjacency {
+    offsets: Vec<u32>,
+    incidences: Vec<Incidence>,
+}
+
+impl Adjacency {
+    fn build(vertex_count: usize, springs: &[Spring]) -> Self {
+        let mut counts = vec![0u32; vertex_count + 1];
+        for s in springs {
+            counts[s.a as usize + 1] += 1;
+            counts[s.b as usize + 1] += 1;
+        }
+        for i in 0..vertex_count {
+            counts[i + 1] += counts[i];
+        }
+        let offsets = counts;
+        let mut fill = offsets.clone();
+        let mut incidences = vec![
+            Incidence {
+                spring: 0,
+                other: 0,
+                sign: 0.0
+            };
+            springs.len() * 2
+        ];
+        for (e, s) in springs.iter().enumerate() {
+            for (v, other, sign) in [(s.a, s.b, 1.0), (s.b, s.a, -1.0)] {
+                let slot = &mut fill[v as usize];
+                incidences[*slot as usize] = Incidence {
+                    spring: e as u32,
+                    other,
+                    sign,
+                };
+                *slot += 1;
+            }
+        }
+        Self {
+            offsets,
+            incidences,
+        }
+    }
+
+    /// The springs incident to vertex `i`.
+    #[inline]
+    pub fn of(&self, i: usize) -> &[Incidence] {
+        &self.incidences[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// Number of springs incident to vertex `i`.
+    #[inline]
+    pub fn degree(&self, i: usize) -> usize {
+        (self.offsets[i + 1] - self.offsets[i]) as usize
+    }
+}
+
+/// The immutable shape of a cloth: rest positions (in the cloth entity's local
+/// space), triangles for rendering, springs and adjacency.
+///
+/// Shared between cloths through an `Arc` in [`ClothModel`](super::ClothModel),
+/// so a hundred identical cloths store it once.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ClothTopology {
+    rest_positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    springs: Vec<Spring>,
+    adjacency: Adjacency,
+    kind_counts: [usize; 3],
+}
+
+impl ClothTopology {
+    /// Builds a topology from rest positions, triangles and extra springs.
+    ///
+    /// The springs are the unique triangle edges (as [`SpringKind::Stretch`],
+    /// sorted by `(a, b)` exactly like the lab's edge list) followed by
+    /// `extra` springs (shear, bending, …) that are not already present.
+    pub(crate) fn new(
+        rest_positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        extra: &[(u32, u32, SpringKind)],
+    ) -> Result<Self, ClothBuildError> {
+        let n = rest_positions.len();
+        if n == 0 {
+            return Err(ClothBuildError::NoVertices);
+        }
+        if let Some(v) = rest_positions.iter().position(|p| !p.is_finite()) {
+            return Err(ClothBuildError::NonFinitePosition { vertex: v });
+        }
+        for (t, tri) in triangles.iter().enumerate() {
+            for &i in tri {
+                if i as usize >= n {
+                    return Err(ClothBuildError::IndexOutOfRange {
+                        index: i,
+                        vertex_count: n,
+                    });
+                }
+            }
+            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+                return Err(ClothBuildError::DegenerateTriangle { triangle: t });
+            }
+        }
+        let mut pairs: Vec<(u32, u32, SpringKind)> = Vec::with_capacity(triangles.len() * 3);
+        for tri in &triangles {
+            for (p, q) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+                pairs.push((p.min(q), p.max(q), SpringKind::Stretch));
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup_by_key(|&mut (a, b, _)| (a, b));
+        let edge_count = pairs.len();
+        let mut extras: Vec<(u32, u32, SpringKind)> = Vec::with_capacity(extra.len());
+        for &(p, q, kind) in extra {
+            for i in [p, q] {
+                if i as usize >= n {
+                    return Err(ClothBuildError::IndexOutOfRange {
+                        index: i,
+                        vertex_count: n,
+                    });
+                }
+            }
+            let (a, b) = (p.min(q), p.max(q));
+            if a == b {
+                return Err(ClothBuildError::ZeroLengthEdge { a, b });
+            }
+            if pairs[..edge_count]
+                .binary_search_by(|&(x, y, _)| (x, y).cmp(&(a, b)))
+                .is_err()
+            {
+                extras.push((a, b, kind));
+            }
+        }
+        extras.sort_unstable_by_key(|&(a, b, k)| (k, a, b));
+        extras.dedup_by_key(|&mut (a, b, _)| (a, b));
+        pairs.extend(extras);
+
+        let mut springs = Vec::with_capacity(pairs.len());
+        for (a, b, kind) in pairs {
+            let rest_length = rest_positions[a as usize].distance(rest_positions[b as usize]);
+            if !(rest_length > 0.0) {
+                return Err(ClothBuildError::ZeroLengthEdge { a, b });
+            }
+            springs.push(Spring {
+                a,
+                b,
+                rest_length,
+                kind,
+            });
+        }
+        let adjacency = Adjacency::build(n, &springs);
+        let mut kind_counts = [0; 3];
+        for s in &springs {
+            kind_counts[s.kind as usize] += 1;
+        }
+        Ok(Self {
+            rest_positions,
+            triangles,
+            springs,
+            adjacency,
+            kind_counts,
+        })
+    }
+
+    /// Number of vertices.
+    #[inline]
+    pub fn vertex_count(&self) -> usize {
+        self.rest_positions.len()
+    }
+
+    /// Rest positions in the cloth's local space.
+    #[inline]
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest_positions
+    }
+
+    /// Triangles (counter-clockwise as given), for rendering and normals.
+    #[inline]
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Springs: the unique triangle edges first, then any extra springs.
+    #[inline]
+    pub fn springs(&self) -> &[Spring] {
+        &self.springs
+    }
+
+    /// Vertex→spring adjacency.
+    #[inline]
+    pub fn adjacency(&self) -> &Adjacency {
+        &self.adjacency
+    }
+
+    /// How many springs of each kind, in [`SpringKind::ALL`] order.
+    #[inline]
+    pub fn spring_counts(&self) -> [usize; 3] {
+        self.kind_counts
+    }
+}

@@ -1,0 +1,206 @@
+//! Implicit Euler by a diagonal-Hessian Newton (Jacobi) iteration, with
+//! optional Chebyshev acceleration — the lab's part 1.
+//!
+//! One step, for every free vertex `i`:
+//!
+//! 1. damp: `vᵢ ← damping·vᵢ`; predict `x̃ᵢ = xᵢ + dt·vᵢ`; initial guess
+//!    `xᵢ = x̃ᵢ` (lab 1.a);
+//! 2. `K` times: the gradient `g = M(x − x̃)/dt² − f(x)` of the implicit-Euler
+//!    objective (lab 1.b, [`gradient`](super::gradient)), then the
+//!    diagonal-Hessian update `xᵢ ← xᵢ − gᵢ / (mᵢ/dt² + 4k)` (lab 1.c).
+//!    With Chebyshev acceleration (lab 1.d; Wang 2015, "A Chebyshev
+//!    semi-iterative approach for accelerating projective and position-based
+//!    dynamics") the update `x̂` is blended with the iterate before last:
+//!    `x⁽ᵏ⁺¹⁾ = ω_{k+1}(x̂ − x⁽ᵏ⁻¹⁾) + x⁽ᵏ⁻¹⁾`, `ω₁ = 1`,
+//!    `ω₂ = 2/(2 − ρ²)`, `ω_{k+1} = 4/(4 − ρ²ω_k)`;
+//! 3. `vᵢ ← vᵢ + (xᵢ − x̃ᵢ)/dt` (lab 1.c).
+//!
+//! `k` in `4k` is the stiffness of the cloth's springs (the largest, if it
+//! has several kinds). Pinned vertices never move.
+
+use bevy::math::Vec3A;
+
+use super::{StepError, StepParams, StepReport, check_state, gradient};
+use crate::model::{ClothModel, ClothState, ParamError};
+
+/// Settings of the implicit solver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImplicitConfig {
+    /// Jacobi iterations per step (the lab: 32).
+    pub iterations: u32,
+    /// Chebyshev acceleration with this spectral-radius estimate `ρ ∈ (0, 1)`
+    /// (the lab's value is 0.995), or `None` for plain Jacobi.
+    pub chebyshev_rho: Option<f32>,
+}
+
+impl ImplicitConfig {
+    /// Plain Jacobi with `iterations` iterations.
+    pub const fn jacobi(iterations: u32) -> Self {
+        Self {
+            iterations,
+            chebyshev_rho: None,
+        }
+    }
+
+    /// Chebyshev-accelerated Jacobi.
+    pub const fn chebyshev(iterations: u32, rho: f32) -> Self {
+        Self {
+            iterations,
+            chebyshev_rho: Some(rho),
+        }
+    }
+
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if self.iterations == 0 {
+            return Err(ParamError::Iterations);
+        }
+        if let Some(rho) = self.chebyshev_rho
+            && !(rho > 0.0 && rho < 1.0)
+        {
+            return Err(ParamError::Rho(rho));
+        }
+        Ok(())
+    }
+}
+
+impl Default for ImplicitConfig {
+    /// The lab: 32 plain Jacobi iterations.
+    fn default() -> Self {
+        Self::jacobi(32)
+    }
+}
+
+/// Scratch buffers of the implicit solver, sized on first use.
+#[derive(Clone, Debug, Default)]
+pub struct ImplicitWorkspace {
+    x_tilde: Vec<Vec3A>,
+    gradient: Vec<Vec3A>,
+    terms: Vec<Vec3A>,
+    inv_diag: Vec<f32>,
+    /// The iterate before last, for Chebyshev; empty without it.
+    x_prev: Vec<Vec3A>,
+}
+
+impl ImplicitWorkspace {
+    fn prepare(&mut self, vertices: usize, springs: usize, chebyshev: bool) {
+        self.x_tilde.resize(vertices, Vec3A::ZERO);
+        self.gradient.resize(vertices, Vec3A::ZERO);
+        self.inv_diag.resize(vertices, 0.0);
+        self.terms.resize(springs, Vec3A::ZERO);
+        if chebyshev {
+            self.x_prev.resize(vertices, Vec3A::ZERO);
+        } else {
+            self.x_prev = Vec::new();
+        }
+    }
+
+    /// The predicted positions `x̃` of the last step.
+    pub fn x_tilde(&self) -> &[Vec3A] {
+        &self.x_tilde
+    }
+}
+
+/// Advances `state` by one implicit-Euler step (see the module docs).
+///
+/// Returns the iterations performed and the final gradient norm. On error
+/// the state is unchanged.
+pub fn step(
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    config: &ImplicitConfig,
+    ws: &mut ImplicitWorkspace,
+) -> Result<StepReport, StepError> {
+    params.validate()?;
+    config.validate()?;
+    check_state(model, state)?;
+    let n = model.vertex_count();
+    ws.prepare(
+        n,
+        model.topology().springs().len(),
+        config.chebyshev_rho.is_some(),
+    );
+    let dt = params.dt;
+    let inv_dt2 = 1.0 / (dt * dt);
+    let pinned = model.pinned();
+    let hessian_springs = 4.0 * params.stiffness.max_present(model);
+    let ClothState {
+        positions: x,
+        velocities: v,
+    } = state;
+
+    // 1.a: damping, prediction, initial guess.
+    for i in 0..n {
+        if !pinned[i] {
+            v[i] *= params.damping;
+            x[i] += dt * v[i];
+        }
+        ws.x_tilde[i] = x[i];
+        ws.inv_diag[i] = 1.0 / (model.masses()[i] * inv_dt2 + hessian_springs);
+    }
+    if let Some(_) = config.chebyshev_rho {
+        ws.x_prev.copy_from_slice(x);
+    }
+
+    // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
+    let mut omega = 1.0f32;
+    for k in 0..config.iterations {
+        gradient(
+            model,
+            x,
+            &ws.x_tilde,
+            params,
+            &mut ws.terms,
+            &mut ws.gradient,
+        );
+        match config.chebyshev_rho {
+            None => {
+                for i in 0..n {
+                    x[i] -= ws.gradient[i] * ws.inv_diag[i];
+                }
+            }
+            Some(rho) => {
+                omega = match k {
+                    0 => 1.0,
+                    1 => 2.0 / (2.0 - rho * rho),
+                    _ => 4.0 / (4.0 - rho * rho * omega),
+                };
+                for i in 0..n {
+                    let x_hat = x[i] - ws.gradient[i] * ws.inv_diag[i];
+                    let prev = ws.x_prev[i];
+                    ws.x_prev[i] = x[i];
+                    x[i] = omega * (x_hat - prev) + prev;
+                }
+            }
+        }
+    }
+
+    // Residual at the final iterate.
+    gradient(
+        model,
+        x,
+        &ws.x_tilde,
+        params,
+        &mut ws.terms,
+        &mut ws.gradient,
+    );
+    let residual = ws
+        .gradient
+        .iter()
+        .map(|g| g.length_squared())
+        .sum::<f32>()
+        .sqrt();
+
+    // 1.c: velocities from the positions.
+    let inv_dt = 1.0 / dt;
+    for i in 0..n {
+        if !pinned[i] {
+            v[i] += (x[i] - ws.x_tilde[i]) * inv_dt;
+        }
+    }
+    Ok(StepReport {
+        iterations: config.iterations,
+        residual: Some(residual),
+    })
+}

@@ -1,0 +1,282 @@
+//! Pure numerics: one file per method, one entry point each. No ECS types.
+//!
+//! Every method advances a [`ClothState`] by one time step of a
+//! [`ClothModel`] under [`StepParams`], using a method-specific workspace that
+//! is allocated on the first step and reused afterwards (no allocation per
+//! step once the sizes are known).
+//!
+//! | method | entry point | the lab's name |
+//! |---|---|---|
+//! | implicit Euler, diagonal-Hessian Newton (Jacobi), optional Chebyshev | [`implicit::step`] | part 1 |
+//! | position-based dynamics, Jacobi strain limiting | [`pbd::step`] | part 2 |
+//!
+//! Shared measures — [`objective`], [`gradient`], [`max_stretch`],
+//! [`energy`] — are here.
+
+pub mod implicit;
+pub mod pbd;
+
+use bevy::math::{Vec3, Vec3A};
+use thiserror::Error;
+
+use crate::model::{ClothModel, ClothState, ParamError, SpringKind};
+
+/// Stiffness of each [`SpringKind`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpringStiffness {
+    /// Stiffness of stretch springs (triangle edges).
+    pub stretch: f32,
+    /// Stiffness of shear (diagonal) springs.
+    pub shear: f32,
+    /// Stiffness of bending (skip-one) springs.
+    pub bend: f32,
+}
+
+impl SpringStiffness {
+    /// The same stiffness for every kind.
+    pub const fn uniform(k: f32) -> Self {
+        Self {
+            stretch: k,
+            shear: k,
+            bend: k,
+        }
+    }
+
+    /// The stiffness of one kind.
+    #[inline]
+    pub fn of(&self, kind: SpringKind) -> f32 {
+        match kind {
+            SpringKind::Stretch => self.stretch,
+            SpringKind::Shear => self.shear,
+            SpringKind::Bend => self.bend,
+        }
+    }
+
+    /// The largest stiffness among the kinds `model` actually has.
+    pub fn max_present(&self, model: &ClothModel) -> f32 {
+        let counts = model.topology().spring_counts();
+        SpringKind::ALL
+            .iter()
+            .filter(|k| counts[**k as usize] > 0)
+            .map(|&k| self.of(k))
+            .fold(0.0, f32::max)
+    }
+
+    /// Per-kind values as an array indexed by `SpringKind as usize`.
+    #[inline]
+    pub fn as_array(&self) -> [f32; 3] {
+        [self.stretch, self.shear, self.bend]
+    }
+}
+
+impl Default for SpringStiffness {
+    /// The lab's `k = 8000` for every kind.
+    fn default() -> Self {
+        Self::uniform(8000.0)
+    }
+}
+
+/// Physical parameters of one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepParams {
+    /// Time step in seconds.
+    pub dt: f32,
+    /// Spring stiffness per kind.
+    pub stiffness: SpringStiffness,
+    /// Velocity multiplier applied at the start of each step (the lab: 0.99).
+    pub damping: f32,
+    /// Gravitational acceleration.
+    pub gravity: Vec3,
+}
+
+impl StepParams {
+    /// The lab's parameters: `dt = 0.0333`, `k = 8000`, damping 0.99,
+    /// gravity `(0, −9.8, 0)`.
+    pub const LAB: Self = Self {
+        dt: 0.0333,
+        stiffness: SpringStiffness::uniform(8000.0),
+        damping: 0.99,
+        gravity: Vec3::new(0.0, -9.8, 0.0),
+    };
+
+    /// Checks every parameter; a solver calls this before it touches state.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return Err(ParamError::TimeStep(self.dt));
+        }
+        for k in self.stiffness.as_array() {
+            if !(k.is_finite() && k > 0.0) {
+                return Err(ParamError::Stiffness(k));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.damping) {
+            return Err(ParamError::Damping(self.damping));
+        }
+        if !self.gravity.is_finite() {
+            return Err(ParamError::Gravity);
+        }
+        Ok(())
+    }
+}
+
+impl Default for StepParams {
+    fn default() -> Self {
+        Self::LAB
+    }
+}
+
+/// Why a step was refused. The state is left untouched.
+#[derive(Error, Debug, Clone, Copy, PartialEq)]
+pub enum StepError {
+    /// A parameter is invalid.
+    #[error(transparent)]
+    Params(#[from] ParamError),
+    /// The state does not have one position and velocity per vertex.
+    #[error("state has {got} vertices, the model {expected}")]
+    StateMismatch {
+        /// Vertices in the model.
+        expected: usize,
+        /// Positions or velocities in the state.
+        got: usize,
+    },
+}
+
+/// What a step reports about its solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepReport {
+    /// Iterations performed.
+    pub iterations: u32,
+    /// The method's own convergence measure, if it has one: the Euclidean
+    /// norm of the objective's gradient over free vertices for the implicit
+    /// solver.
+    pub residual: Option<f32>,
+}
+
+pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), StepError> {
+    let expected = model.vertex_count();
+    for got in [state.positions.len(), state.velocities.len()] {
+        if got != expected {
+            return Err(StepError::StateMismatch { expected, got });
+        }
+    }
+    Ok(())
+}
+
+/// Per-spring gradient term `k(1 − L/l)(x_a − x_b)` (the lab's equation 2)
+/// for spring `a→b`; zero for a spring of zero current length, whose
+/// direction is undefined.
+#[inline]
+pub(crate) fn spring_term(xa: Vec3A, xb: Vec3A, rest: f32, k: f32) -> Vec3A {
+    let d = xa - xb;
+    let l = d.length();
+    if l > 0.0 {
+        d * (k * (1.0 - rest / l))
+    } else {
+        Vec3A::ZERO
+    }
+}
+
+/// Fills `terms[e]` with each spring's gradient term at positions `x`.
+pub(crate) fn spring_terms(
+    model: &ClothModel,
+    x: &[Vec3A],
+    stiffness: &SpringStiffness,
+    terms: &mut [Vec3A],
+) {
+    let k = stiffness.as_array();
+    for (t, s) in terms.iter_mut().zip(model.topology().springs()) {
+        *t = spring_term(
+            x[s.a as usize],
+            x[s.b as usize],
+            s.rest_length,
+            k[s.kind as usize],
+        );
+    }
+}
+
+/// The gradient of the implicit-Euler objective (the lab's equation 1),
+/// `g = M(x − x̃)/dt² − f(x)` with spring and gravity forces, into `out`.
+/// Pinned vertices get zero. `terms` is scratch of one entry per spring.
+pub fn gradient(
+    model: &ClothModel,
+    x: &[Vec3A],
+    x_tilde: &[Vec3A],
+    params: &StepParams,
+    terms: &mut [Vec3A],
+    out: &mut [Vec3A],
+) {
+    spring_terms(model, x, &params.stiffness, terms);
+    let inv_dt2 = 1.0 / (params.dt * params.dt);
+    let gravity = Vec3A::from(params.gravity);
+    let adjacency = model.topology().adjacency();
+    let masses = model.masses();
+    let pinned = model.pinned();
+    for (i, g) in out.iter_mut().enumerate() {
+        if pinned[i] {
+            *g = Vec3A::ZERO;
+            continue;
+        }
+        let m = masses[i];
+        let mut acc = (x[i] - x_tilde[i]) * (m * inv_dt2) - gravity * m;
+        for inc in adjacency.of(i) {
+            acc += terms[inc.spring as usize] * inc.sign;
+        }
+        *g = acc;
+    }
+}
+
+/// The implicit-Euler objective whose minimiser is the next position:
+/// `Σ m/(2dt²)‖x − x̃‖² + Σ_springs ½k(l − L)² − Σ m g·x`, in `f64`.
+/// Its gradient is [`gradient`].
+pub fn objective(model: &ClothModel, x: &[Vec3A], x_tilde: &[Vec3A], params: &StepParams) -> f64 {
+    let inv_dt2 = 1.0 / (f64::from(params.dt) * f64::from(params.dt));
+    let mut e = 0.0;
+    for (i, &m) in model.masses().iter().enumerate() {
+        let m = f64::from(m);
+        let d = x[i].as_dvec3() - x_tilde[i].as_dvec3();
+        e += 0.5 * m * inv_dt2 * d.length_squared()
+            - m * params.gravity.as_dvec3().dot(x[i].as_dvec3());
+    }
+    e + spring_energy(model, x, &params.stiffness)
+}
+
+fn spring_energy(model: &ClothModel, x: &[Vec3A], stiffness: &SpringStiffness) -> f64 {
+    model
+        .topology()
+        .springs()
+        .iter()
+        .map(|s| {
+            let l = (x[s.a as usize].as_dvec3() - x[s.b as usize].as_dvec3()).length();
+            let stretch = l - f64::from(s.rest_length);
+            0.5 * f64::from(stiffness.of(s.kind)) * stretch * stretch
+        })
+        .sum()
+}
+
+/// Total mechanical energy (kinetic + spring + gravitational, with `y = 0`
+/// as zero height along gravity), in `f64`.
+pub fn energy(model: &ClothModel, state: &ClothState, params: &StepParams) -> f64 {
+    let g = params.gravity.as_dvec3();
+    let mut e = 0.0;
+    for (i, &m) in model.masses().iter().enumerate() {
+        let m = f64::from(m);
+        e += 0.5 * m * state.velocities[i].as_dvec3().length_squared()
+            - m * g.dot(state.positions[i].as_dvec3());
+    }
+    e + spring_energy(model, &state.positions, &params.stiffness)
+}
+
+/// Largest relative elongation `(l − L)/L` over all springs (0 at rest, 0.1
+/// when some spring is 10 % longer than at rest). NaN if a position is.
+pub fn max_stretch(model: &ClothModel, x: &[Vec3A]) -> f32 {
+    let mut worst = f32::NEG_INFINITY;
+    for s in model.topology().springs() {
+        let l = x[s.a as usize].distance(x[s.b as usize]);
+        let r = (l - s.rest_length) / s.rest_length;
+        if r.is_nan() {
+            return f32::NAN;
+        }
+        worst = worst.max(r);
+    }
+    worst
+}

@@ -1,0 +1,119 @@
+//! Position-based dynamics with Jacobi strain limiting — the lab's part 2.
+//!
+//! One step, for every free vertex `i`:
+//!
+//! 1. `vᵢ ← damping·vᵢ + dt·g`, `xᵢ ← xᵢ + dt·vᵢ` (lab 2.a);
+//! 2. `K` times, Jacobi strain limiting (lab equations 5–6): every spring
+//!    `e = (i, j)` proposes for each end the position that restores its rest
+//!    length about the spring's midpoint,
+//!    `½(xᵢ + xⱼ ± L_e (xᵢ − xⱼ)/‖xᵢ − xⱼ‖)`; each vertex moves to the
+//!    0.2-weighted average `x'ᵢ = (0.2 xᵢ + Σ proposals)/(0.2 + nᵢ)` of its
+//!    position and its `nᵢ` proposals, and `vᵢ ← vᵢ + (x'ᵢ − xᵢ)/dt`.
+//!
+//! The proposals are computed once per spring and gathered per vertex.
+//! Pinned vertices never move (but their springs still propose positions to
+//! their neighbours).
+
+use bevy::math::Vec3A;
+
+use super::{StepError, StepParams, StepReport, check_state};
+use crate::model::{ClothModel, ClothState, ParamError};
+
+/// The weight of a vertex's own position in the lab's Jacobi average.
+pub const SELF_WEIGHT: f32 = 0.2;
+
+/// Settings of the PBD solver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbdConfig {
+    /// Strain-limiting iterations per step.
+    pub iterations: u32,
+}
+
+impl PbdConfig {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if self.iterations == 0 {
+            return Err(ParamError::Iterations);
+        }
+        Ok(())
+    }
+}
+
+impl Default for PbdConfig {
+    /// 32 iterations (the lab leaves the count open; this matches part 1).
+    fn default() -> Self {
+        Self { iterations: 32 }
+    }
+}
+
+/// Scratch buffers of the PBD solver, sized on first use.
+#[derive(Clone, Debug, Default)]
+pub struct PbdWorkspace {
+    /// Per spring: the midpoint and half the rest-length vector.
+    proposals: Vec<[Vec3A; 2]>,
+}
+
+/// Advances `state` by one PBD step (see the module docs). Stiffness is not
+/// used: strain limiting restores rest lengths directly.
+pub fn step(
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    config: &PbdConfig,
+    ws: &mut PbdWorkspace,
+) -> Result<StepReport, StepError> {
+    params.validate()?;
+    config.validate()?;
+    check_state(model, state)?;
+    let n = model.vertex_count();
+    let springs = model.topology().springs();
+    let adjacency = model.topology().adjacency();
+    let pinned = model.pinned();
+    ws.proposals.resize(springs.len(), [Vec3A::ZERO; 2]);
+    let dt = params.dt;
+    let inv_dt = 1.0 / dt;
+    let gravity = Vec3A::from(params.gravity);
+    let ClothState {
+        positions: x,
+        velocities: v,
+    } = state;
+
+    for i in 0..n {
+        if !pinned[i] {
+            v[i] = v[i] * params.damping + dt * gravity;
+            x[i] += dt * v[i];
+        }
+    }
+
+    for _ in 0..config.iterations {
+        for (p, s) in ws.proposals.iter_mut().zip(springs) {
+            let (xa, xb) = (x[s.a as usize], x[s.b as usize]);
+            let d = xa - xb;
+            let l = d.length();
+            let half = if l > 0.0 {
+                d * (0.5 * s.rest_length / l)
+            } else {
+                Vec3A::ZERO
+            };
+            *p = [0.5 * (xa + xb), half];
+        }
+        for i in 0..n {
+            if pinned[i] {
+                continue;
+            }
+            let incidences = adjacency.of(i);
+            let mut sum = Vec3A::ZERO;
+            for inc in incidences {
+                let [mid, half] = ws.proposals[inc.spring as usize];
+                sum += mid + half * inc.sign;
+            }
+            let new = (SELF_WEIGHT * x[i] + sum) / (SELF_WEIGHT + incidences.len() as f32);
+            v[i] += (new - x[i]) * inv_dt;
+            x[i] = new;
+        }
+    }
+    Ok(StepReport {
+        iterations: config.iterations,
+        residual: None,
+    })
+}
