@@ -162,6 +162,11 @@ fn run(o: &Options) -> Result<(), String> {
             Transform::from_xyz(0.0, -4.0, 4.0),
         ));
     }
+    // Let one update carry a whole step even when dt exceeds Bevy's default
+    // 0.25 s cap on a frame's virtual time.
+    app.world_mut()
+        .resource_mut::<Time<Virtual>>()
+        .set_max_delta(Duration::from_secs_f64(f64::from(o.dt).max(0.25)));
     app.finish();
     app.cleanup();
     // The first update starts the clock; each later one runs one fixed step.

@@ -138,9 +138,9 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothMethod, ClothParams, ClothStats,
-    ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, ImplicitPlugin, ImplicitSolver,
-    PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
+    Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods, ClothParams,
+    ClothStats, ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, ImplicitPlugin,
+    ImplicitSolver, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
 
 /// Everything a game needs, in one import.
@@ -148,8 +148,8 @@ pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
         Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothStats, ClothStatus,
-        ClothSystems, ImplicitPlugin, ImplicitSolver, PbdPlugin, PbdSolver, SphereCollider,
-        SphereCollisionPlugin, SphereResponse,
+        ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver, PbdPlugin, PbdSolver,
+        SphereCollider, SphereCollisionPlugin, SphereResponse,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
     pub use crate::solver::{SpringStiffness, StepParams};

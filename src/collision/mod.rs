@@ -55,3 +55,6 @@ pub fn project_spheres(
     }
     count
 }
+
+#[cfg(test)]
+mod tests;

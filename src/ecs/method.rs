@@ -103,18 +103,18 @@ fn on_method_removed<M: ClothMethod>(remove: On<Remove, M>, mut commands: Comman
     }
 }
 
+/// What the step system of method `M` reads and writes per cloth.
+type StepData<M> = (
+    Entity,
+    &'static mut Cloth,
+    &'static ClothParams,
+    &'static M,
+    &'static mut ClothWorkspace<<M as ClothMethod>::Workspace>,
+    &'static mut ClothStats,
+);
+
 /// Steps every running cloth that has method `M`, in parallel across cloths.
-fn step_cloths<M: ClothMethod>(
-    time: Res<Time>,
-    mut cloths: Query<(
-        Entity,
-        &mut Cloth,
-        &ClothParams,
-        &M,
-        &mut ClothWorkspace<M::Workspace>,
-        &mut ClothStats,
-    )>,
-) {
+fn step_cloths<M: ClothMethod>(time: Res<Time>, mut cloths: Query<StepData<M>>) {
     let dt = time.delta_secs();
     if dt <= 0.0 {
         return;

@@ -34,6 +34,7 @@ enum Source {
 /// Describes a cloth and builds a validated [`ClothModel`].
 ///
 /// ```
+/// use bevy::math::Vec3;
 /// use bevy_cloth::prelude::*;
 ///
 /// // The Unity lab's cloth: 21×21 vertices over 10×10 units, mass 1 per

@@ -83,3 +83,6 @@ impl ClothModel {
         self.masses.len()
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -195,7 +195,7 @@ impl ClothTopology {
         let mut springs = Vec::with_capacity(pairs.len());
         for (a, b, kind) in pairs {
             let rest_length = rest_positions[a as usize].distance(rest_positions[b as usize]);
-            if !(rest_length > 0.0) {
+            if rest_length <= 0.0 || rest_length.is_nan() {
                 return Err(ClothBuildError::ZeroLengthEdge { a, b });
             }
             springs.push(Spring {

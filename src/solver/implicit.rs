@@ -139,7 +139,7 @@ pub fn step(
         ws.x_tilde[i] = x[i];
         ws.inv_diag[i] = 1.0 / (model.masses()[i] * inv_dt2 + hessian_springs);
     }
-    if let Some(_) = config.chebyshev_rho {
+    if config.chebyshev_rho.is_some() {
         ws.x_prev.copy_from_slice(x);
     }
 
@@ -154,10 +154,12 @@ pub fn step(
             &mut ws.terms,
             &mut ws.gradient,
         );
+        // Pinned vertices have a zero gradient, so neither update moves them.
+        let updates = x.iter_mut().zip(&ws.gradient).zip(&ws.inv_diag);
         match config.chebyshev_rho {
             None => {
-                for i in 0..n {
-                    x[i] -= ws.gradient[i] * ws.inv_diag[i];
+                for ((xi, g), d) in updates {
+                    *xi -= *g * *d;
                 }
             }
             Some(rho) => {
@@ -166,11 +168,11 @@ pub fn step(
                     1 => 2.0 / (2.0 - rho * rho),
                     _ => 4.0 / (4.0 - rho * rho * omega),
                 };
-                for i in 0..n {
-                    let x_hat = x[i] - ws.gradient[i] * ws.inv_diag[i];
-                    let prev = ws.x_prev[i];
-                    ws.x_prev[i] = x[i];
-                    x[i] = omega * (x_hat - prev) + prev;
+                for (((xi, g), d), prev) in updates.zip(ws.x_prev.iter_mut()) {
+                    let x_hat = *xi - *g * *d;
+                    let before = *prev;
+                    *prev = *xi;
+                    *xi = omega * (x_hat - before) + before;
                 }
             }
         }

@@ -280,3 +280,6 @@ pub fn max_stretch(model: &ClothModel, x: &[Vec3A]) -> f32 {
     }
     worst
 }
+
+#[cfg(test)]
+mod tests;

@@ -1,1 +1,6 @@
+//! Headless `App` tests of the real plugin (one test binary, so Bevy is
+//! linked once).
 
+mod common;
+mod plugin;
+mod scenes;

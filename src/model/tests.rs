@@ -1,0 +1,186 @@
+use bevy::math::Vec3;
+use bevy::math::primitives::Plane3d;
+use bevy::mesh::{Mesh, Meshable};
+
+use super::*;
+
+#[test]
+fn lab_grid_matches_the_lab() {
+    let n = 21;
+    let model = ClothBuilder::lab().build().unwrap();
+    let topo = model.topology();
+    assert_eq!(topo.vertex_count(), 441);
+    for j in 0..n {
+        for i in 0..n {
+            let p = topo.rest_positions()[j * n + i];
+            let expected = Vec3::new(
+                5.0 - 10.0 * i as f32 / (n - 1) as f32,
+                0.0,
+                5.0 - 10.0 * j as f32 / (n - 1) as f32,
+            );
+            assert!((p - expected).length() < 1e-6, "vertex {}", j * n + i);
+        }
+    }
+    // Two triangles per cell, as in the lab.
+    assert_eq!(topo.triangles().len(), 2 * 20 * 20);
+    assert_eq!(topo.triangles()[0], [0, 1, 22]);
+    assert_eq!(topo.triangles()[1], [0, 22, 21]);
+    // Unique edges: 20·21 along i, 20·21 along j, 20·20 diagonals.
+    assert_eq!(topo.springs().len(), 420 + 420 + 400);
+    assert_eq!(topo.spring_counts(), [1240, 0, 0]);
+    // Sorted by (a, b) like the lab's edge list, each with a < b.
+    for w in topo.springs().windows(2) {
+        assert!((w[0].a, w[0].b) < (w[1].a, w[1].b));
+    }
+    for s in topo.springs() {
+        let expected =
+            topo.rest_positions()[s.a as usize].distance(topo.rest_positions()[s.b as usize]);
+        assert_eq!(s.rest_length, expected);
+    }
+    assert_eq!(model.pins(), &[0, 20]);
+    assert!(model.pinned()[0] && model.pinned()[20] && !model.pinned()[1]);
+    assert!(model.masses().iter().all(|&m| m == 1.0));
+}
+
+#[test]
+fn adjacency_lists_every_spring_from_both_ends() {
+    let model = ClothBuilder::lab_grid(5).build().unwrap();
+    let topo = model.topology();
+    let adj = topo.adjacency();
+    // Interior vertices of the lab's triangulation have 6 springs, corners 2 or 3.
+    assert_eq!(adj.degree(12), 6);
+    assert_eq!(adj.degree(0), 3);
+    assert_eq!(adj.degree(4), 2);
+    let mut seen = vec![0; topo.springs().len()];
+    for i in 0..topo.vertex_count() {
+        for inc in adj.of(i) {
+            let s = topo.springs()[inc.spring as usize];
+            let (me, other) = if inc.sign > 0.0 {
+                (s.a, s.b)
+            } else {
+                (s.b, s.a)
+            };
+            assert_eq!(me as usize, i);
+            assert_eq!(other, inc.other);
+            seen[inc.spring as usize] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&c| c == 2));
+}
+
+#[test]
+fn invalid_input_gets_typed_errors() {
+    let tri = || vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+    assert_eq!(
+        ClothBuilder::from_triangles(vec![], vec![]).build(),
+        Err(ClothBuildError::NoVertices)
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1, 3]).build(),
+        Err(ClothBuildError::IndexOutOfRange {
+            index: 3,
+            vertex_count: 3
+        })
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1]).build(),
+        Err(ClothBuildError::IndexCountNotMultipleOf3(2))
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![]).build(),
+        Err(ClothBuildError::NoTriangles)
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1, 1]).build(),
+        Err(ClothBuildError::DegenerateTriangle { triangle: 0 })
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(vec![Vec3::ZERO, Vec3::NAN, Vec3::Y], vec![0, 1, 2]).build(),
+        Err(ClothBuildError::NonFinitePosition { vertex: 1 })
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(vec![Vec3::ZERO, Vec3::ZERO, Vec3::Y], vec![0, 1, 2]).build(),
+        Err(ClothBuildError::ZeroLengthEdge { a: 0, b: 1 })
+    );
+    for mass in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(matches!(
+            ClothBuilder::from_triangles(tri(), vec![0, 1, 2])
+                .with_mass_per_vertex(mass)
+                .build(),
+            Err(ClothBuildError::InvalidMass { vertex: 0, .. })
+        ));
+    }
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1, 2])
+            .with_masses(vec![1.0, 2.0])
+            .build(),
+        Err(ClothBuildError::MassCountMismatch {
+            got: 2,
+            vertex_count: 3
+        })
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1, 2])
+            .with_masses(vec![1.0, -2.0, 1.0])
+            .build(),
+        Err(ClothBuildError::InvalidMass {
+            vertex: 1,
+            mass: -2.0
+        })
+    );
+    assert_eq!(
+        ClothBuilder::from_triangles(tri(), vec![0, 1, 2])
+            .with_pins([7])
+            .build(),
+        Err(ClothBuildError::PinOutOfRange {
+            index: 7,
+            vertex_count: 3
+        })
+    );
+    assert_eq!(
+        ClothBuilder::lab_grid(1).build(),
+        Err(ClothBuildError::GridTooSmall { rows: 1, cols: 1 })
+    );
+}
+
+#[test]
+fn total_mass_is_spread_and_pins_deduplicated() {
+    let model = ClothBuilder::lab_grid(2)
+        .with_total_mass(0.1)
+        .with_pins([1, 1, 0])
+        .build()
+        .unwrap();
+    assert!(model.masses().iter().all(|&m| (m - 0.025).abs() < 1e-9));
+    assert_eq!(model.pins(), &[1, 0]);
+}
+
+#[test]
+fn bevy_meshes_become_cloths() {
+    let mesh: Mesh = Plane3d::default()
+        .mesh()
+        .size(2.0, 2.0)
+        .subdivisions(3)
+        .into();
+    let model = ClothBuilder::from_mesh(&mesh).unwrap().build().unwrap();
+    assert_eq!(model.topology().vertex_count(), 25);
+    assert_eq!(model.topology().triangles().len(), 32);
+    // 4×5 + 5×4 grid edges + 16 diagonals.
+    assert_eq!(model.topology().springs().len(), 56);
+
+    let points = Mesh::new(
+        bevy::mesh::PrimitiveTopology::PointList,
+        bevy::asset::RenderAssetUsages::default(),
+    );
+    assert_eq!(
+        ClothBuilder::from_mesh(&points),
+        Err(MeshReadError::NotTriangleList)
+    );
+    let empty = Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        bevy::asset::RenderAssetUsages::default(),
+    );
+    assert_eq!(
+        ClothBuilder::from_mesh(&empty),
+        Err(MeshReadError::MissingPositions)
+    );
+}

@@ -1,0 +1,258 @@
+use bevy::math::{Affine3A, Vec3, Vec3A};
+
+use super::implicit::{self, ImplicitConfig, ImplicitWorkspace};
+use super::pbd::{self, PbdConfig, PbdWorkspace};
+use super::*;
+use crate::model::{ClothBuilder, ClothModel, ClothState, ParamError};
+
+fn lab() -> (ClothModel, ClothState) {
+    let model = ClothBuilder::lab().build().unwrap();
+    let state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    (model, state)
+}
+
+/// A deterministic pseudo-random vector in [-1, 1]³.
+fn noise(seed: &mut u64) -> Vec3A {
+    let mut next = || {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    Vec3A::new(next(), next(), next())
+}
+
+/// A swinging state: the lab cloth after `steps` Jacobi steps.
+fn swinging(steps: usize) -> (ClothModel, ClothState) {
+    let (model, mut state) = lab();
+    let mut ws = ImplicitWorkspace::default();
+    for _ in 0..steps {
+        implicit::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &ImplicitConfig::default(),
+            &mut ws,
+        )
+        .unwrap();
+    }
+    (model, state)
+}
+
+#[test]
+fn gradient_matches_finite_differences() {
+    let (model, state) = lab();
+    let mut seed = 7;
+    let x: Vec<Vec3A> = state
+        .positions
+        .iter()
+        .map(|&p| p + 0.3 * noise(&mut seed))
+        .collect();
+    let x_tilde: Vec<Vec3A> = state
+        .positions
+        .iter()
+        .map(|&p| p + 0.1 * noise(&mut seed))
+        .collect();
+    let params = StepParams::LAB;
+    let mut terms = vec![Vec3A::ZERO; model.topology().springs().len()];
+    let mut g = vec![Vec3A::ZERO; model.vertex_count()];
+    gradient(&model, &x, &x_tilde, &params, &mut terms, &mut g);
+    let eps = 1e-2f32;
+    let mut worst = 0.0f64;
+    for i in [1usize, 5, 21, 220, 440] {
+        for axis in 0..3 {
+            let mut xp = x.clone();
+            let mut xm = x.clone();
+            xp[i][axis] += eps;
+            xm[i][axis] -= eps;
+            let h = f64::from(xp[i][axis]) - f64::from(xm[i][axis]);
+            let fd = (objective(&model, &xp, &x_tilde, &params)
+                - objective(&model, &xm, &x_tilde, &params))
+                / h;
+            let analytic = f64::from(g[i][axis]);
+            let err = (fd - analytic).abs() / analytic.abs().max(1.0);
+            worst = worst.max(err);
+        }
+    }
+    assert!(worst < 1e-3, "worst relative error {worst}");
+    // Pinned vertices have no gradient (no degrees of freedom).
+    assert_eq!(g[0], Vec3A::ZERO);
+    assert_eq!(g[20], Vec3A::ZERO);
+}
+
+#[test]
+fn jacobi_residual_falls_with_iterations_and_chebyshev_beats_it() {
+    let (model, start) = swinging(20);
+    let residual = |config: ImplicitConfig| {
+        let mut state = start.clone();
+        let mut ws = ImplicitWorkspace::default();
+        implicit::step(&model, &mut state, &StepParams::LAB, &config, &mut ws)
+            .unwrap()
+            .residual
+            .unwrap()
+    };
+    let r8 = residual(ImplicitConfig::jacobi(8));
+    let r32 = residual(ImplicitConfig::jacobi(32));
+    let r128 = residual(ImplicitConfig::jacobi(128));
+    assert!(r32 < r8 && r128 < r32, "{r8} {r32} {r128}");
+    let c32 = residual(ImplicitConfig::chebyshev(32, 0.995));
+    assert!(c32 < r32, "chebyshev {c32} jacobi {r32}");
+}
+
+#[test]
+fn implicit_step_keeps_pins_and_is_deterministic() {
+    let (model, start) = swinging(5);
+    let run = || {
+        let mut state = start.clone();
+        let mut ws = ImplicitWorkspace::default();
+        for _ in 0..3 {
+            implicit::step(
+                &model,
+                &mut state,
+                &StepParams::LAB,
+                &ImplicitConfig::chebyshev(32, 0.995),
+                &mut ws,
+            )
+            .unwrap();
+        }
+        state
+    };
+    let a = run();
+    let b = run();
+    assert_eq!(a, b);
+    assert_eq!(a.positions[0], start.positions[0]);
+    assert_eq!(a.positions[20], start.positions[20]);
+    assert_ne!(a.positions[440], start.positions[440]);
+}
+
+#[test]
+fn invalid_parameters_are_refused_and_leave_the_state_alone() {
+    let (model, start) = lab();
+    let cases = [
+        (
+            StepParams {
+                dt: 0.0,
+                ..StepParams::LAB
+            },
+            ParamError::TimeStep(0.0),
+        ),
+        (
+            StepParams {
+                stiffness: SpringStiffness::uniform(-1.0),
+                ..StepParams::LAB
+            },
+            ParamError::Stiffness(-1.0),
+        ),
+        (
+            StepParams {
+                damping: 1.5,
+                ..StepParams::LAB
+            },
+            ParamError::Damping(1.5),
+        ),
+        (
+            StepParams {
+                gravity: Vec3::new(0.0, f32::NAN, 0.0),
+                ..StepParams::LAB
+            },
+            ParamError::Gravity,
+        ),
+    ];
+    for (params, expected) in cases {
+        let mut state = start.clone();
+        let err = implicit::step(
+            &model,
+            &mut state,
+            &params,
+            &ImplicitConfig::default(),
+            &mut ImplicitWorkspace::default(),
+        )
+        .unwrap_err();
+        assert_eq!(err, StepError::Params(expected));
+        let err = pbd::step(
+            &model,
+            &mut state,
+            &params,
+            &PbdConfig::default(),
+            &mut PbdWorkspace::default(),
+        )
+        .unwrap_err();
+        assert_eq!(err, StepError::Params(expected));
+        assert_eq!(state, start);
+    }
+    let mut state = start.clone();
+    assert_eq!(
+        implicit::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &ImplicitConfig::chebyshev(32, 1.0),
+            &mut ImplicitWorkspace::default()
+        ),
+        Err(StepError::Params(ParamError::Rho(1.0)))
+    );
+    assert_eq!(
+        pbd::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &PbdConfig { iterations: 0 },
+            &mut PbdWorkspace::default()
+        ),
+        Err(StepError::Params(ParamError::Iterations))
+    );
+    state.positions.pop();
+    assert_eq!(
+        pbd::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &PbdConfig::default(),
+            &mut PbdWorkspace::default()
+        ),
+        Err(StepError::StateMismatch {
+            expected: 441,
+            got: 440
+        })
+    );
+}
+
+#[test]
+fn pbd_stretch_falls_with_iterations_and_pins_hold() {
+    let stretch_after = |iterations: u32| {
+        let (model, mut state) = lab();
+        let mut ws = PbdWorkspace::default();
+        for _ in 0..100 {
+            pbd::step(
+                &model,
+                &mut state,
+                &StepParams::LAB,
+                &PbdConfig { iterations },
+                &mut ws,
+            )
+            .unwrap();
+        }
+        assert_eq!(state.positions[0], Vec3A::new(5.0, 0.0, 5.0));
+        assert_eq!(state.positions[20], Vec3A::new(-5.0, 0.0, 5.0));
+        max_stretch(&model, &state.positions)
+    };
+    let s8 = stretch_after(8);
+    let s32 = stretch_after(32);
+    let s128 = stretch_after(128);
+    assert!(s128 < s32 && s32 < s8, "{s8} {s32} {s128}");
+}
+
+#[test]
+fn max_stretch_and_energy_measure_the_state() {
+    let (model, mut state) = lab();
+    assert_eq!(max_stretch(&model, &state.positions), 0.0);
+    let params = StepParams::LAB;
+    // At rest in the y = 0 plane: no kinetic, spring or potential energy.
+    assert!(energy(&model, &state, &params).abs() < 1e-6);
+    // Stretch the cloth by 10 % in x: every x spring is 10 % longer.
+    for p in &mut state.positions {
+        p.x *= 1.1;
+    }
+    assert!((max_stretch(&model, &state.positions) - 0.1).abs() < 1e-5);
+    assert!(energy(&model, &state, &params) > 0.0);
+}

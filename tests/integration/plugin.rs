@@ -1,0 +1,246 @@
+//! Plugin mechanics: schedule, pins, method switching, errors, guard.
+
+use bevy::prelude::*;
+use bevy_cloth::ClothMethods;
+use bevy_cloth::prelude::*;
+
+use crate::common::*;
+
+fn fixed_system_count(app: &mut App) -> usize {
+    app.world_mut()
+        .resource_mut::<Schedules>()
+        .get(FixedUpdate)
+        .unwrap()
+        .systems_len()
+}
+
+#[test]
+fn pinned_vertices_sit_exactly_where_their_entity_puts_them() {
+    let mut app = app();
+    let parent = app
+        .world_mut()
+        .spawn(Transform::from_xyz(0.0, 10.0, 0.0))
+        .id();
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    app.world_mut().entity_mut(cloth).insert(ChildOf(parent));
+    run_steps(&mut app, 5);
+    let rest = [Vec3::new(5.0, 0.0, 5.0), Vec3::new(-5.0, 0.0, 5.0)];
+    for k in 0..20 {
+        let local = Transform::from_xyz(k as f32, 0.5 * k as f32, 0.0)
+            .with_rotation(Quat::from_rotation_y(0.1 * k as f32));
+        *app.world_mut().get_mut::<Transform>(cloth).unwrap() = local;
+        run_steps(&mut app, 1);
+        let global = Transform::from_xyz(0.0, 10.0, 0.0).mul_transform(local);
+        let x = positions(&app, cloth);
+        for (pin, r) in [0, 20].into_iter().zip(rest) {
+            let expected = GlobalTransform::from(global)
+                .affine()
+                .transform_point3a(r.into());
+            assert_eq!(x[pin], expected, "pin {pin} at step {k}");
+        }
+    }
+    // The entity moved 19 units in x: the sheet followed its pins.
+    let x = positions(&app, cloth);
+    assert!(x[220].x > 10.0, "{}", x[220]);
+}
+
+#[test]
+fn a_new_cloth_is_placed_at_its_transform() {
+    let mut app = app();
+    let cloth = Cloth::build(ClothBuilder::lab()).unwrap();
+    let entity = app
+        .world_mut()
+        .spawn((
+            cloth,
+            ImplicitSolver::default(),
+            Transform::from_xyz(1.0, 2.0, 3.0),
+        ))
+        .id();
+    run_steps(&mut app, 1);
+    assert_eq!(positions(&app, entity)[0], Vec3A::new(6.0, 2.0, 8.0));
+}
+
+#[test]
+fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
+    let mut app = app_with(PbdPlugin::default());
+    let pbd = spawn_lab(&mut app, PbdSolver::default());
+    let implicit = spawn_lab(&mut app, ImplicitSolver::default());
+    app.world_mut().spawn((
+        SphereCollider::new(2.7),
+        Transform::from_xyz(0.0, -4.0, 4.0),
+    ));
+    run_steps(&mut app, 50);
+    // Registered: the core and PBD only. Scheduled: place/pin, guard, the
+    // PBD step and the test's step counter; nothing else.
+    let methods: Vec<_> = app.world().resource::<ClothMethods>().names().collect();
+    assert_eq!(methods, ["pbd"]);
+    assert!(app.is_plugin_added::<ClothCorePlugin>());
+    assert!(!app.is_plugin_added::<ImplicitPlugin>());
+    assert!(!app.is_plugin_added::<SphereCollisionPlugin>());
+    assert_eq!(fixed_system_count(&mut app), 4);
+    let mut full = app_with(ClothPlugins::default());
+    run_steps(&mut full, 1);
+    assert_eq!(fixed_system_count(&mut full), 6);
+    assert_eq!(stats(&app, pbd).steps, 50);
+    assert_eq!(stats(&app, pbd).contacts, 0);
+    // The implicit cloth has no plugin to step it: it is placed, never moved.
+    assert_eq!(stats(&app, implicit).steps, 0);
+    assert_eq!(positions(&app, implicit)[440], Vec3A::new(-5.0, 0.0, -5.0));
+}
+
+#[test]
+fn method_systems_do_no_work_without_their_component() {
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, PbdSolver::default());
+    // Only PBD cloths and no collider: the implicit and collision systems are
+    // skipped by their run conditions, so their stats stay untouched.
+    run_steps(&mut app, 3);
+    let s = stats(&app, cloth);
+    assert_eq!((s.method, s.steps, s.contacts), ("pbd", 3, 0));
+}
+
+#[test]
+fn swapping_the_method_component_switches_the_method() {
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    run_steps(&mut app, 10);
+    assert_eq!(stats(&app, cloth).method, "implicit");
+    app.world_mut()
+        .entity_mut(cloth)
+        .insert(PbdSolver::default());
+    app.world_mut().flush();
+    run_steps(&mut app, 10);
+    let e = app.world().entity(cloth);
+    assert!(e.contains::<PbdSolver>());
+    assert!(!e.contains::<ImplicitSolver>(), "one method per cloth");
+    let s = stats(&app, cloth);
+    assert_eq!((s.method, s.steps), ("pbd", 20));
+    // And back.
+    app.world_mut()
+        .entity_mut(cloth)
+        .insert(ImplicitSolver::chebyshev(16, 0.99));
+    run_steps(&mut app, 1);
+    assert!(!app.world().entity(cloth).contains::<PbdSolver>());
+    let s = stats(&app, cloth);
+    assert_eq!((s.method, s.steps, s.iterations), ("implicit", 21, 16));
+}
+
+#[test]
+fn invalid_parameters_skip_the_cloth_until_fixed() {
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    run_steps(&mut app, 2);
+    let before = positions(&app, cloth);
+    app.world_mut()
+        .get_mut::<ClothParams>(cloth)
+        .unwrap()
+        .damping = 2.0;
+    run_steps(&mut app, 3);
+    let s = stats(&app, cloth);
+    assert_eq!(
+        s.status,
+        ClothStatus::Invalid(ParamError::Damping(2.0).to_string())
+    );
+    assert_eq!(s.steps, 2);
+    // Pins are re-placed each step, but nothing else moved.
+    assert_eq!(positions(&app, cloth), before);
+    app.world_mut()
+        .get_mut::<ClothParams>(cloth)
+        .unwrap()
+        .damping = 0.99;
+    run_steps(&mut app, 1);
+    let s = stats(&app, cloth);
+    assert!(s.is_running());
+    assert_eq!(s.steps, 3);
+}
+
+#[test]
+fn invalid_solver_settings_and_colliders_do_not_panic() {
+    let mut app = app();
+    let zero = spawn_lab(&mut app, ImplicitSolver::jacobi(0));
+    let rho = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 1.5));
+    let ok = spawn_lab(&mut app, PbdSolver::default());
+    app.world_mut().spawn((
+        SphereCollider::new(f32::NAN),
+        Transform::from_xyz(0.0, -4.0, 4.0),
+    ));
+    app.world_mut()
+        .spawn((SphereCollider::new(-1.0), Transform::default()));
+    run_steps(&mut app, 5);
+    assert_eq!(
+        stats(&app, zero).status,
+        ClothStatus::Invalid(ParamError::Iterations.to_string())
+    );
+    assert_eq!(
+        stats(&app, rho).status,
+        ClothStatus::Invalid(ParamError::Rho(1.5).to_string())
+    );
+    assert!(stats(&app, ok).is_running());
+    assert!(positions(&app, ok).iter().all(|p| p.is_finite()));
+}
+
+#[derive(Resource, Default)]
+struct Diverged(Vec<ClothDiverged>);
+
+fn collect(mut reader: MessageReader<ClothDiverged>, mut seen: ResMut<Diverged>) {
+    seen.0.extend(reader.read().copied());
+}
+
+#[test]
+fn a_diverging_cloth_is_stopped_restored_and_reported() {
+    let mut app = app();
+    app.init_resource::<Diverged>()
+        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+    // Chebyshev with rho far above the Jacobi iteration's spectral radius at
+    // k = 1e6 diverges within a few dozen steps.
+    let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.9999));
+    app.world_mut()
+        .entity_mut(cloth)
+        .insert(ClothParams::default().with_stiffness(1e6));
+    let calm = spawn_lab(&mut app, ImplicitSolver::default());
+    run_steps(&mut app, 60);
+    let s = stats(&app, cloth);
+    assert_eq!(s.status, ClothStatus::Diverged(DivergenceReason::NonFinite));
+    let seen = &app.world().resource::<Diverged>().0;
+    assert_eq!(seen.len(), 1, "reported once");
+    assert_eq!(seen[0].entity, cloth);
+    assert_eq!(seen[0].method, "implicit");
+    assert_eq!(seen[0].step, s.steps);
+    // Restored to its last good (finite) state and no longer stepped.
+    let x = positions(&app, cloth);
+    assert!(x.iter().all(|p| p.is_finite()));
+    run_steps(&mut app, 5);
+    assert_eq!(stats(&app, cloth).steps, s.steps);
+    assert_eq!(positions(&app, cloth)[100], x[100]);
+    // The other cloth is unaffected.
+    assert_eq!(stats(&app, calm).steps, 65);
+    assert!(stats(&app, calm).is_running());
+}
+
+#[test]
+fn the_same_scene_gives_bitwise_identical_results() {
+    let run = || {
+        let mut app = app();
+        let cloths: Vec<Entity> = (0..4)
+            .map(|k| {
+                let e = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+                app.world_mut()
+                    .get_mut::<Transform>(e)
+                    .unwrap()
+                    .translation
+                    .x = 12.0 * k as f32;
+                e
+            })
+            .collect();
+        app.world_mut().spawn((
+            SphereCollider::new(2.7),
+            Transform::from_xyz(0.0, -4.0, 4.0),
+        ));
+        run_steps(&mut app, 60);
+        cloths
+            .iter()
+            .map(|&c| positions(&app, c))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run(), run());
+}
