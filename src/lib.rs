@@ -195,3 +195,8 @@ impl PluginGroup for ClothPlugins {
             .add(SphereCollisionPlugin::new(self.schedule))
     }
 }
+
+/// The README's snippets, compiled and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

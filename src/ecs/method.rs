@@ -56,6 +56,10 @@ impl ClothMethods {
     }
 }
 
+/// The step systems of all methods.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct MethodSteps;
+
 /// Registers method `M`: its step system in [`ClothSystems::Step`] (running
 /// only while some entity has `M`), and the observers that keep one method
 /// per cloth and manage `M`'s workspace.
@@ -70,6 +74,10 @@ pub(crate) fn add_method<M: ClothMethod>(app: &mut App, schedule: Interned<dyn S
         schedule,
         step_cloths::<M>
             .in_set(ClothSystems::Step)
+            .in_set(MethodSteps)
+            // Method step systems all write `Cloth`, but never the same cloth:
+            // a cloth has one method (enforced by the observers below).
+            .ambiguous_with(MethodSteps)
             .run_if(any_with_component::<M>),
     )
     .add_observer(on_method_inserted::<M>)

@@ -244,3 +244,45 @@ fn the_same_scene_gives_bitwise_identical_results() {
     };
     assert_eq!(run(), run());
 }
+
+#[test]
+fn components_are_reflected_and_registered() {
+    let app = app();
+    let registry = app.world().resource::<AppTypeRegistry>().read();
+    for path in [
+        "bevy_cloth::ecs::components::Cloth",
+        "bevy_cloth::ecs::components::ClothParams",
+        "bevy_cloth::ecs::components::ClothStats",
+        "bevy_cloth::ecs::implicit::ImplicitSolver",
+        "bevy_cloth::ecs::pbd::PbdSolver",
+        "bevy_cloth::ecs::collision::SphereCollider",
+    ] {
+        let registration = registry
+            .get_with_type_path(path)
+            .unwrap_or_else(|| panic!("{path} is not registered"));
+        assert!(
+            registration
+                .data::<bevy::ecs::reflect::ReflectComponent>()
+                .is_some(),
+            "{path} does not reflect Component"
+        );
+    }
+}
+
+#[test]
+fn the_cloth_systems_have_no_ambiguities() {
+    use bevy::ecs::schedule::{LogLevel, ScheduleBuildSettings};
+    let mut app = app();
+    app.edit_schedule(FixedUpdate, |schedule| {
+        schedule.set_build_settings(ScheduleBuildSettings {
+            ambiguity_detection: LogLevel::Error,
+            ..default()
+        });
+    });
+    spawn_lab(&mut app, ImplicitSolver::default());
+    spawn_lab(&mut app, PbdSolver::default());
+    app.world_mut()
+        .spawn((SphereCollider::new(2.7), Transform::default()));
+    // Building the schedule with ambiguities reported as errors panics if any.
+    run_steps(&mut app, 2);
+}
