@@ -35,6 +35,7 @@ fn warm(model: &ClothModel, params: &StepParams) -> ClothState {
             &mut state,
             params,
             &ImplicitConfig::chebyshev(32, 0.995),
+            &[],
             &mut ws,
         )
         .expect("valid step");
@@ -56,7 +57,7 @@ fn steps(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new(name, n), |b| {
                 b.iter(|| {
                     state.copy_from(&start);
-                    implicit::step(&model, &mut state, &params, &config, &mut ws).unwrap();
+                    implicit::step(&model, &mut state, &params, &config, &[], &mut ws).unwrap();
                     black_box(&state);
                 })
             });
@@ -71,6 +72,7 @@ fn steps(c: &mut Criterion) {
                     &mut state,
                     &params,
                     &PbdConfig { iterations: 32 },
+                    &[],
                     &mut ws,
                 )
                 .unwrap();
@@ -85,7 +87,7 @@ fn steps(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("sphere_projection", n), |b| {
             b.iter(|| {
                 state.copy_from(&start);
-                black_box(project_spheres(&model, &mut state, &sphere, params.dt));
+                black_box(project_spheres(&model, &mut state, &sphere, 0.0, params.dt));
             })
         });
     }

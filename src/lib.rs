@@ -138,9 +138,11 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods, ClothParams,
-    ClothStats, ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, ImplicitPlugin,
-    ImplicitSolver, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
+    Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods,
+    ClothParams, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason,
+    ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodPlugin,
+    PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
+    SymplecticSolver,
 };
 
 /// Everything a game needs, in one import.
@@ -148,10 +150,14 @@ pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
         Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothStats, ClothStatus,
-        ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver, PbdPlugin, PbdSolver,
-        SphereCollider, SphereCollisionPlugin, SphereResponse,
+        ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin,
+        LinearImplicitSolver, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin,
+        SphereResponse, SymplecticPlugin, SymplecticSolver,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
+    pub use crate::solver::linear::{
+        CgConfig, LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian,
+    };
     pub use crate::solver::{SpringStiffness, StepParams};
 }
 
@@ -192,6 +198,8 @@ impl PluginGroup for ClothPlugins {
             .add(ClothCorePlugin::new(self.schedule))
             .add(ImplicitPlugin::new(self.schedule))
             .add(PbdPlugin::new(self.schedule))
+            .add(SymplecticPlugin::new(self.schedule))
+            .add(LinearImplicitPlugin::new(self.schedule))
             .add(SphereCollisionPlugin::new(self.schedule))
     }
 }

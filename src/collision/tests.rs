@@ -13,7 +13,7 @@ fn vertices_inside_are_projected_to_the_surface_with_matching_velocity() {
         radius: 2.7,
     };
     let dt = 0.0333;
-    let count = project_spheres(&model, &mut state, &[sphere], dt);
+    let count = project_spheres(&model, &mut state, &[sphere], 0.0, dt);
     let inside = before
         .positions
         .iter()
@@ -46,7 +46,7 @@ fn pinned_vertices_and_the_centre_case() {
     ];
     let pin = state.positions[0];
     let free = state.positions[220];
-    assert_eq!(project_spheres(&model, &mut state, &spheres, 0.01), 1);
+    assert_eq!(project_spheres(&model, &mut state, &spheres, 0.0, 0.01), 1);
     assert_eq!(state.positions[0], pin);
     assert!((state.positions[220] - (free + Vec3A::Y * 0.1)).length() < 1e-6);
 }

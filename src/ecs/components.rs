@@ -37,6 +37,9 @@ pub struct Cloth {
     #[reflect(ignore)]
     pub(crate) last_good: ClothState,
     pub(crate) initialized: bool,
+    /// Set by a step that failed; reported by the guard in `SyncOut`.
+    #[reflect(ignore)]
+    pub(crate) divergence: Option<DivergenceReason>,
 }
 
 impl Cloth {
@@ -101,6 +104,10 @@ pub struct ClothParams {
     pub damping: f32,
     /// Gravitational acceleration (the lab: `(0, −9.8, 0)`).
     pub gravity: Vec3,
+    /// Radius of the cloth's particles for collisions: sphere contacts
+    /// happen at the sphere's radius plus this (the lab: 0; the assignment
+    /// gives particles a small radius).
+    pub particle_radius: f32,
 }
 
 impl Default for ClothParams {
@@ -110,6 +117,7 @@ impl Default for ClothParams {
             stiffness: lab.stiffness,
             damping: lab.damping,
             gravity: lab.gravity,
+            particle_radius: 0.0,
         }
     }
 }
@@ -134,6 +142,12 @@ impl ClothParams {
     /// These parameters with another damping.
     pub fn with_damping(mut self, damping: f32) -> Self {
         self.damping = damping;
+        self
+    }
+
+    /// These parameters with another particle radius.
+    pub fn with_particle_radius(mut self, radius: f32) -> Self {
+        self.particle_radius = radius;
         self
     }
 
@@ -163,6 +177,9 @@ pub enum ClothStatus {
 pub enum DivergenceReason {
     /// A position or velocity became NaN or infinite.
     NonFinite,
+    /// The method's linear solve failed (a matrix that is not positive
+    /// definite, or a failed factorisation); the state was left as it was.
+    SolveFailed,
 }
 
 /// What the last step of a cloth did. Updated every fixed step.

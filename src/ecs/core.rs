@@ -9,8 +9,8 @@ use bevy::utils::Parallel;
 
 use super::reflect::SpringStiffnessReflect;
 use super::{
-    Cloth, ClothDiverged, ClothMethods, ClothParams, ClothStats, ClothStatus, ClothSystems,
-    DivergenceReason,
+    Cloth, ClothColliders, ClothDiverged, ClothMethods, ClothParams, ClothStats, ClothStatus,
+    ClothSystems, DivergenceReason,
 };
 use crate::model::ClothState;
 use crate::solver;
@@ -46,6 +46,7 @@ impl Plugin for ClothCorePlugin {
             .register_type::<ClothStats>()
             .register_type::<SpringStiffnessReflect>()
             .init_resource::<ClothMethods>()
+            .init_resource::<ClothColliders>()
             .add_message::<ClothDiverged>()
             .configure_sets(
                 self.schedule,
@@ -124,6 +125,15 @@ fn guard_and_measure(
     cloths
         .par_iter_mut()
         .for_each(|(entity, mut cloth, params, mut stats)| {
+            if let Some(reason) = cloth.divergence.take() {
+                diverged.borrow_local_mut().push(ClothDiverged {
+                    entity,
+                    method: stats.method,
+                    reason,
+                    step: stats.steps,
+                });
+                return;
+            }
             if !cloth.initialized || !stats.is_running() {
                 return;
             }

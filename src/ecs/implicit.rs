@@ -1,11 +1,9 @@
 //! The implicit pipeline (the lab's part 1) as a component and a plugin.
 
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 
-use super::ClothCorePlugin;
-use super::method::{ClothMethod, add_method};
+use super::method::{ClothMethod, MethodPlugin};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
 use crate::solver::{StepError, StepParams, StepReport};
@@ -71,48 +69,34 @@ impl Default for ImplicitSolver {
 }
 
 impl ClothMethod for ImplicitSolver {
-    const NAME: &'static str = "implicit";
+    const KIND: &'static str = "implicit";
     type Workspace = ImplicitWorkspace;
+
+    fn name(&self) -> &'static str {
+        if self.chebyshev.is_some() {
+            "chebyshev"
+        } else {
+            "jacobi"
+        }
+    }
+
+    fn register_types(app: &mut App) {
+        app.register_type::<ImplicitSolver>()
+            .register_type::<Chebyshev>();
+    }
 
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
+        spheres: &[PenaltySphere],
         workspace: &mut ImplicitWorkspace,
     ) -> Result<StepReport, StepError> {
-        implicit::step(model, state, params, &self.config(), workspace)
+        implicit::step(model, state, params, &self.config(), spheres, workspace)
     }
 }
 
 /// Adds the implicit pipeline: cloths with an [`ImplicitSolver`] are stepped
 /// in [`ClothSystems::Step`](super::ClothSystems::Step).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct ImplicitPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl ImplicitPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for ImplicitPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
-}
-
-impl Plugin for ImplicitPlugin {
-    fn build(&self, app: &mut App) {
-        ClothCorePlugin::new_interned(self.schedule).add_once(app);
-        app.register_type::<ImplicitSolver>()
-            .register_type::<Chebyshev>();
-        add_method::<ImplicitSolver>(app, self.schedule);
-    }
-}
+pub type ImplicitPlugin = MethodPlugin<ImplicitSolver>;

@@ -1,7 +1,8 @@
 //! The glue every method plugin shares: one generic step system, and the rule
 //! that a cloth has at most one method component at a time.
 
-use core::any::type_name;
+use core::any::TypeId;
+use core::marker::PhantomData;
 use std::time::Instant;
 
 use bevy::ecs::component::{ComponentId, Mutable};
@@ -10,7 +11,10 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
 
-use super::{Cloth, ClothParams, ClothStats, ClothStatus, ClothSystems};
+use super::{
+    Cloth, ClothColliders, ClothParams, ClothStats, ClothStatus, ClothSystems, DivergenceReason,
+};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::{StepError, StepParams, StepReport};
 
@@ -22,17 +26,25 @@ use crate::solver::{StepError, StepParams, StepReport};
 /// scratch buffers live in a [`ClothWorkspace`] that is added with the
 /// method and removed with it.
 pub trait ClothMethod: Component<Mutability = Mutable> {
-    /// Short name, shown in [`ClothStats::method`] and messages.
-    const NAME: &'static str;
+    /// Name of the component kind, for [`ClothMethods`].
+    const KIND: &'static str;
     /// Scratch buffers reused from step to step.
     type Workspace: Default + Send + Sync + 'static;
 
-    /// Advances `state` by one step.
+    /// Short name of this configuration, shown in [`ClothStats::method`]
+    /// and messages (for example `"chebyshev"` or `"linear-cg"`).
+    fn name(&self) -> &'static str;
+
+    /// Registers the method's reflected types.
+    fn register_types(app: &mut App);
+
+    /// Advances `state` by one step, with penalty `spheres` acting inside it.
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
+        spheres: &[PenaltySphere],
         workspace: &mut Self::Workspace,
     ) -> Result<StepReport, StepError>;
 }
@@ -40,19 +52,25 @@ pub trait ClothMethod: Component<Mutability = Mutable> {
 /// A method's scratch buffers on a cloth entity (not reflected: it holds no
 /// state worth inspecting and is rebuilt on demand).
 #[derive(Component, Default, Debug)]
-pub struct ClothWorkspace<W: Default + Send + Sync + 'static>(pub W);
+pub struct ClothWorkspace<W: Default + Send + Sync + 'static> {
+    /// The solver's own buffers.
+    pub solver: W,
+    /// This cloth's penalty spheres (contact distance includes its particle
+    /// radius), refilled each step.
+    penalty: Vec<PenaltySphere>,
+}
 
 /// The method components registered by method plugins, for the
 /// one-method-per-cloth rule.
 #[derive(Resource, Default, Debug)]
 pub struct ClothMethods {
-    ids: Vec<(ComponentId, &'static str)>,
+    ids: Vec<(ComponentId, TypeId, &'static str)>,
 }
 
 impl ClothMethods {
-    /// Names of the registered methods, in registration order.
+    /// Kinds of the registered methods, in registration order.
     pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
-        self.ids.iter().map(|&(_, name)| name)
+        self.ids.iter().map(|&(_, _, name)| name)
     }
 }
 
@@ -66,10 +84,10 @@ struct MethodSteps;
 pub(crate) fn add_method<M: ClothMethod>(app: &mut App, schedule: Interned<dyn ScheduleLabel>) {
     let id = app.world_mut().register_component::<M>();
     let mut methods = app.world_mut().get_resource_or_init::<ClothMethods>();
-    if methods.ids.iter().any(|&(i, _)| i == id) {
+    if methods.ids.iter().any(|&(i, _, _)| i == id) {
         return;
     }
-    methods.ids.push((id, M::NAME));
+    methods.ids.push((id, TypeId::of::<M>(), M::KIND));
     app.add_systems(
         schedule,
         step_cloths::<M>
@@ -95,8 +113,8 @@ fn on_method_inserted<M: ClothMethod>(
         return;
     };
     let mut cmds = commands.entity(entity);
-    for &(id, name) in &methods.ids {
-        if name != M::NAME && entity_ref.contains_id(id) {
+    for &(id, type_id, _) in &methods.ids {
+        if type_id != TypeId::of::<M>() && entity_ref.contains_id(id) {
             cmds.remove_by_id(id);
         }
     }
@@ -111,6 +129,55 @@ fn on_method_removed<M: ClothMethod>(remove: On<Remove, M>, mut commands: Comman
     }
 }
 
+/// The plugin of method `M`: it steps the cloths that carry `M` in
+/// [`ClothSystems::Step`], and adds [`ClothCorePlugin`](super::ClothCorePlugin)
+/// if it is missing, so each method plugin can be added on its own.
+pub struct MethodPlugin<M> {
+    schedule: Interned<dyn ScheduleLabel>,
+    _method: PhantomData<fn() -> M>,
+}
+
+impl<M> MethodPlugin<M> {
+    /// Runs in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+            _method: PhantomData,
+        }
+    }
+}
+
+impl<M> Default for MethodPlugin<M> {
+    /// `FixedUpdate`.
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl<M> Clone for MethodPlugin<M> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<M> Copy for MethodPlugin<M> {}
+
+impl<M> core::fmt::Debug for MethodPlugin<M> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct(core::any::type_name::<Self>())
+            .field("schedule", &self.schedule)
+            .finish()
+    }
+}
+
+impl<M: ClothMethod> Plugin for MethodPlugin<M> {
+    fn build(&self, app: &mut App) {
+        super::ClothCorePlugin::new_interned(self.schedule).add_once(app);
+        M::register_types(app);
+        add_method::<M>(app, self.schedule);
+    }
+}
+
 /// What the step system of method `M` reads and writes per cloth.
 type StepData<M> = (
     Entity,
@@ -122,7 +189,11 @@ type StepData<M> = (
 );
 
 /// Steps every running cloth that has method `M`, in parallel across cloths.
-fn step_cloths<M: ClothMethod>(time: Res<Time>, mut cloths: Query<StepData<M>>) {
+fn step_cloths<M: ClothMethod>(
+    time: Res<Time>,
+    colliders: Res<ClothColliders>,
+    mut cloths: Query<StepData<M>>,
+) {
     let dt = time.delta_secs();
     if dt <= 0.0 {
         return;
@@ -135,13 +206,27 @@ fn step_cloths<M: ClothMethod>(time: Res<Time>, mut cloths: Query<StepData<M>>) 
             }
             let cloth = &mut *cloth;
             cloth.last_good.copy_from(&cloth.state);
+            let particle_radius = params.particle_radius;
             let params = params.step_params(dt);
+            let ws = &mut *ws;
+            ws.penalty.clear();
+            ws.penalty
+                .extend(colliders.penalty.iter().map(|s| PenaltySphere {
+                    radius: s.radius + particle_radius,
+                    ..*s
+                }));
             let start = Instant::now();
-            let result = method.step(&cloth.model, &mut cloth.state, &params, &mut ws.0);
+            let result = method.step(
+                &cloth.model,
+                &mut cloth.state,
+                &params,
+                &ws.penalty,
+                &mut ws.solver,
+            );
             let elapsed = start.elapsed();
+            stats.method = method.name();
             match result {
                 Ok(report) => {
-                    stats.method = M::NAME;
                     stats.steps += 1;
                     stats.step_time = elapsed;
                     stats.iterations = report.iterations;
@@ -150,13 +235,20 @@ fn step_cloths<M: ClothMethod>(time: Res<Time>, mut cloths: Query<StepData<M>>) 
                         stats.status = ClothStatus::Running;
                     }
                 }
+                Err(StepError::Solve(error)) => {
+                    // The state is untouched: the cloth stops where it was.
+                    warn!(
+                        "cloth {entity} stopped: the '{}' solve failed at step {}: {error}",
+                        method.name(),
+                        stats.steps
+                    );
+                    stats.status = ClothStatus::Diverged(DivergenceReason::SolveFailed);
+                    cloth.divergence = Some(DivergenceReason::SolveFailed);
+                }
                 Err(error) => {
                     let text = error.to_string();
                     if stats.status != ClothStatus::Invalid(text.clone()) {
-                        warn!(
-                            "cloth {entity} ({}) skipped: {text}",
-                            type_name::<M>().rsplit("::").next().unwrap_or(M::NAME)
-                        );
+                        warn!("cloth {entity} ('{}') skipped: {text}", method.name());
                         stats.status = ClothStatus::Invalid(text);
                     }
                 }

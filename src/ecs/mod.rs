@@ -5,6 +5,7 @@
 //! [`solver`](crate::solver) and [`collision`](crate::collision), which know
 //! nothing of entities, schedules or time.
 
+mod assignment;
 mod collision;
 mod components;
 mod core;
@@ -16,13 +17,19 @@ mod schedule;
 
 use bevy::prelude::*;
 
-pub use collision::{SphereCollider, SphereCollisionPlugin, SphereResponse};
+pub use assignment::{
+    LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin, SymplecticSolver,
+};
+pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
 pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};
 pub use core::ClothCorePlugin;
 pub use implicit::{Chebyshev, ImplicitPlugin, ImplicitSolver};
-pub use method::{ClothMethod, ClothMethods, ClothWorkspace};
+pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
 pub use pbd::{PbdPlugin, PbdSolver};
-pub use reflect::SpringStiffnessReflect;
+pub use reflect::{
+    CgConfigReflect, LinearSolverReflect, PenaltyJacobianReflect, PreconditionerReflect,
+    SpringJacobianReflect, SpringStiffnessReflect,
+};
 pub use schedule::ClothSystems;
 
 /// Sent when the divergence guard stops a cloth: its state went non-finite,

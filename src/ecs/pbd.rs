@@ -1,11 +1,9 @@
 //! The position-based pipeline (the lab's part 2) as a component and a plugin.
 
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 
-use super::ClothCorePlugin;
-use super::method::{ClothMethod, add_method};
+use super::method::{ClothMethod, MethodPlugin};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::pbd::{self, PbdConfig, PbdWorkspace};
 use crate::solver::{StepError, StepParams, StepReport};
@@ -34,55 +32,32 @@ impl Default for PbdSolver {
 }
 
 impl ClothMethod for PbdSolver {
-    const NAME: &'static str = "pbd";
+    const KIND: &'static str = "pbd";
     type Workspace = PbdWorkspace;
+
+    fn name(&self) -> &'static str {
+        "pbd"
+    }
+
+    fn register_types(app: &mut App) {
+        app.register_type::<PbdSolver>();
+    }
 
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
+        spheres: &[PenaltySphere],
         workspace: &mut PbdWorkspace,
     ) -> Result<StepReport, StepError> {
-        pbd::step(
-            model,
-            state,
-            params,
-            &PbdConfig {
-                iterations: self.iterations,
-            },
-            workspace,
-        )
+        let config = PbdConfig {
+            iterations: self.iterations,
+        };
+        pbd::step(model, state, params, &config, spheres, workspace)
     }
 }
 
 /// Adds the position-based pipeline: cloths with a [`PbdSolver`] are stepped
 /// in [`ClothSystems::Step`](super::ClothSystems::Step).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct PbdPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl PbdPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for PbdPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
-}
-
-impl Plugin for PbdPlugin {
-    fn build(&self, app: &mut App) {
-        ClothCorePlugin::new_interned(self.schedule).add_once(app);
-        app.register_type::<PbdSolver>();
-        add_method::<PbdSolver>(app, self.schedule);
-    }
-}
+pub type PbdPlugin = MethodPlugin<PbdSolver>;

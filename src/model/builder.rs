@@ -5,7 +5,8 @@ use std::sync::Arc;
 use bevy::math::Vec3;
 use bevy::mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues};
 
-use super::{ClothBuildError, ClothModel, ClothTopology, MeshReadError};
+use super::topology::{cross_edge_springs, triangle_edges, validate_triangles};
+use super::{ClothBuildError, ClothModel, ClothTopology, MeshReadError, SpringKind};
 
 /// How mass is given to the vertices.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,6 +30,11 @@ enum Source {
         positions: Vec<Vec3>,
         indices: Vec<u32>,
     },
+    SpringGrid {
+        rows: usize,
+        cols: usize,
+        corners: [Vec3; 4],
+    },
 }
 
 /// Describes a cloth and builds a validated [`ClothModel`].
@@ -51,6 +57,8 @@ pub struct ClothBuilder {
     source: Source,
     mass: Mass,
     pins: Vec<u32>,
+    shear: bool,
+    bend: bool,
 }
 
 impl ClothBuilder {
@@ -87,6 +95,8 @@ impl ClothBuilder {
             },
             mass: Mass::PerVertex(1.0),
             pins: Vec::new(),
+            shear: false,
+            bend: false,
         }
     }
 
@@ -97,7 +107,61 @@ impl ClothBuilder {
             source: Source::Triangles { positions, indices },
             mass: Mass::PerVertex(1.0),
             pins: Vec::new(),
+            shear: false,
+            bend: false,
         }
+    }
+
+    /// The assignment's particle grid: `rows×cols` particles between four
+    /// corners, particle `i*cols + j` (row `i`, column `j`) at the bilinear
+    /// blend `(1−v)((1−u)x00 + u·x10) + v((1−u)x01 + u·x11)` with
+    /// `u = i/(rows−1)`, `v = j/(cols−1)`. Springs as the assignment builds
+    /// them: stretch springs along rows ("x") and columns ("y"); with
+    /// [`with_shear_springs`](Self::with_shear_springs) both diagonals of
+    /// every cell; with [`with_bending_springs`](Self::with_bending_springs)
+    /// skip-one springs along rows and columns. Each cell is split into two
+    /// triangles for rendering only. Mass 1 per particle, no pins.
+    pub fn spring_grid(
+        rows: usize,
+        cols: usize,
+        x00: Vec3,
+        x01: Vec3,
+        x10: Vec3,
+        x11: Vec3,
+    ) -> Self {
+        Self {
+            source: Source::SpringGrid {
+                rows,
+                cols,
+                corners: [x00, x01, x10, x11],
+            },
+            mass: Mass::PerVertex(1.0),
+            pins: Vec::new(),
+            shear: false,
+            bend: false,
+        }
+    }
+
+    /// The assignment's scene cloth: a [`spring_grid`](Self::spring_grid)
+    /// over the horizontal square `x ∈ [−0.25, 0.25]`, `z ∈ [−0.5, 0]` at
+    /// `y = 0.5` (`x00 = (−0.25, 0.5, 0)`, `x01 = (0.25, 0.5, 0)`,
+    /// `x10 = (−0.25, 0.5, −0.5)`, `x11 = (0.25, 0.5, −0.5)`), total mass
+    /// 0.1, every spring kind, and the two corners of row 0 fixed. This is
+    /// the setup that reproduces the assignment's printed first-step `A` and
+    /// `b` for 2×2 (derived from that matrix: see the crate docs).
+    pub fn assignment(rows: usize, cols: usize) -> Self {
+        Self::spring_grid(
+            rows,
+            cols,
+            Vec3::new(-0.25, 0.5, 0.0),
+            Vec3::new(0.25, 0.5, 0.0),
+            Vec3::new(-0.25, 0.5, -0.5),
+            Vec3::new(0.25, 0.5, -0.5),
+        )
+        .with_total_mass(0.1)
+        .with_shear_springs()
+        .with_bending_springs()
+        .with_pins([0, cols.saturating_sub(1) as u32])
     }
 
     /// A Bevy triangle-list [`Mesh`] with `Float32x3` positions and an index
@@ -141,6 +205,24 @@ impl ClothBuilder {
         self
     }
 
+    /// Adds shear springs: both diagonals of every cell of a
+    /// [`spring_grid`](Self::spring_grid); for the lab grid and triangle
+    /// meshes, the diagonal across each edge that two triangles share as
+    /// their longest edge (see [`ClothTopology`]).
+    pub fn with_shear_springs(mut self) -> Self {
+        self.shear = true;
+        self
+    }
+
+    /// Adds bending springs: skip-one neighbours along rows and columns of a
+    /// [`spring_grid`](Self::spring_grid); for the lab grid and triangle
+    /// meshes, a spring across every other interior edge, joining the two
+    /// vertices opposite it.
+    pub fn with_bending_springs(mut self) -> Self {
+        self.bend = true;
+        self
+    }
+
     /// Vertices held in place: they follow the cloth entity's transform and are
     /// never moved by a solver or a collider.
     pub fn with_pins(mut self, pins: impl IntoIterator<Item = u32>) -> Self {
@@ -150,7 +232,7 @@ impl ClothBuilder {
 
     /// Validates the description and builds the model.
     pub fn build(self) -> Result<ClothModel, ClothBuildError> {
-        let (positions, triangles) = match self.source {
+        let (positions, triangles, springs) = match self.source {
             Source::Grid {
                 rows,
                 cols,
@@ -159,7 +241,8 @@ impl ClothBuilder {
                 if rows < 2 || cols < 2 {
                     return Err(ClothBuildError::GridTooSmall { rows, cols });
                 }
-                grid_mesh(rows, cols, o, ai - o, aj - o)
+                let (positions, triangles) = grid_mesh(rows, cols, o, ai - o, aj - o);
+                (positions, triangles, None)
             }
             Source::Triangles { positions, indices } => {
                 if indices.len() % 3 != 0 {
@@ -169,7 +252,19 @@ impl ClothBuilder {
                     .chunks_exact(3)
                     .map(|c| [c[0], c[1], c[2]])
                     .collect();
-                (positions, tris)
+                (positions, tris, None)
+            }
+            Source::SpringGrid {
+                rows,
+                cols,
+                corners,
+            } => {
+                if rows < 2 || cols < 2 {
+                    return Err(ClothBuildError::GridTooSmall { rows, cols });
+                }
+                let (positions, triangles, springs) =
+                    spring_grid(rows, cols, corners, self.shear, self.bend);
+                (positions, triangles, Some(springs))
             }
         };
         let n = positions.len();
@@ -205,13 +300,94 @@ impl ClothBuilder {
                 vertex_count: n,
             });
         }
-        let topology = ClothTopology::new(positions, triangles, &[])?;
+        let springs = match springs {
+            Some(springs) => springs,
+            None => {
+                // Validate before deriving springs from the triangles.
+                validate_triangles(&triangles, n)?;
+                let mut springs = triangle_edges(&triangles);
+                if self.shear || self.bend {
+                    if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+                        return Err(ClothBuildError::NonFinitePosition { vertex: v });
+                    }
+                    springs.extend(cross_edge_springs(
+                        &positions, &triangles, self.shear, self.bend,
+                    ));
+                }
+                springs
+            }
+        };
+        let topology = ClothTopology::new(positions, triangles, &springs)?;
         Ok(ClothModel::from_parts(
             Arc::new(topology),
             masses,
             self.pins,
         ))
     }
+}
+
+/// A spring to build: its two vertices and its kind.
+type SpringSpec = (u32, u32, SpringKind);
+
+/// The assignment's particles, springs (in its order: x, y, shear, x bend,
+/// y bend) and two render triangles per cell.
+fn spring_grid(
+    rows: usize,
+    cols: usize,
+    [x00, x01, x10, x11]: [Vec3; 4],
+    shear: bool,
+    bend: bool,
+) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<SpringSpec>) {
+    let mut positions = Vec::with_capacity(rows * cols);
+    for i in 0..rows {
+        let u = i as f32 / (rows - 1) as f32;
+        let x0 = (1.0 - u) * x00 + u * x10;
+        let x1 = (1.0 - u) * x01 + u * x11;
+        for j in 0..cols {
+            let v = j as f32 / (cols - 1) as f32;
+            positions.push((1.0 - v) * x0 + v * x1);
+        }
+    }
+    let k = |i: usize, j: usize| (i * cols + j) as u32;
+    let mut springs = Vec::new();
+    for i in 0..rows {
+        for j in 0..cols - 1 {
+            springs.push((k(i, j), k(i, j + 1), SpringKind::Stretch));
+        }
+    }
+    for j in 0..cols {
+        for i in 0..rows - 1 {
+            springs.push((k(i, j), k(i + 1, j), SpringKind::Stretch));
+        }
+    }
+    if shear {
+        for i in 0..rows - 1 {
+            for j in 0..cols - 1 {
+                springs.push((k(i, j), k(i + 1, j + 1), SpringKind::Shear));
+                springs.push((k(i, j + 1), k(i + 1, j), SpringKind::Shear));
+            }
+        }
+    }
+    if bend {
+        for i in 0..rows {
+            for j in 0..cols.saturating_sub(2) {
+                springs.push((k(i, j), k(i, j + 2), SpringKind::Bend));
+            }
+        }
+        for j in 0..cols {
+            for i in 0..rows.saturating_sub(2) {
+                springs.push((k(i, j), k(i + 2, j), SpringKind::Bend));
+            }
+        }
+    }
+    let mut triangles = Vec::with_capacity((rows - 1) * (cols - 1) * 2);
+    for i in 0..rows - 1 {
+        for j in 0..cols - 1 {
+            triangles.push([k(i, j), k(i, j + 1), k(i + 1, j + 1)]);
+            triangles.push([k(i, j), k(i + 1, j + 1), k(i + 1, j)]);
+        }
+    }
+    (positions, triangles, springs)
 }
 
 /// Grid positions and the lab's triangulation.

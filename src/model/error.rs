@@ -126,6 +126,9 @@ pub enum ParamError {
     /// Chebyshev's spectral radius estimate must lie in `(0, 1)`.
     #[error("Chebyshev rho {0} must lie in (0, 1)")]
     Rho(f32),
+    /// A solver tolerance is negative or not finite.
+    #[error("tolerance {0} must be finite and non-negative")]
+    Tolerance(f64),
     /// A collider radius is negative or not finite.
     #[error("collider radius {0} must be finite and non-negative")]
     Radius(f32),

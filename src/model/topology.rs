@@ -128,15 +128,13 @@ pub struct ClothTopology {
 }
 
 impl ClothTopology {
-    /// Builds a topology from rest positions, triangles and extra springs.
-    ///
-    /// The springs are the unique triangle edges (as [`SpringKind::Stretch`],
-    /// sorted by `(a, b)` exactly like the lab's edge list) followed by
-    /// `extra` springs (shear, bending, …) that are not already present.
+    /// Builds a topology from rest positions, triangles (for rendering and
+    /// normals) and springs `(a, b, kind)`, kept in the order given; a spring
+    /// joining a pair that an earlier spring already joins is dropped.
     pub(crate) fn new(
         rest_positions: Vec<Vec3>,
         triangles: Vec<[u32; 3]>,
-        extra: &[(u32, u32, SpringKind)],
+        spring_list: &[(u32, u32, SpringKind)],
     ) -> Result<Self, ClothBuildError> {
         let n = rest_positions.len();
         if n == 0 {
@@ -145,30 +143,9 @@ impl ClothTopology {
         if let Some(v) = rest_positions.iter().position(|p| !p.is_finite()) {
             return Err(ClothBuildError::NonFinitePosition { vertex: v });
         }
-        for (t, tri) in triangles.iter().enumerate() {
-            for &i in tri {
-                if i as usize >= n {
-                    return Err(ClothBuildError::IndexOutOfRange {
-                        index: i,
-                        vertex_count: n,
-                    });
-                }
-            }
-            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-                return Err(ClothBuildError::DegenerateTriangle { triangle: t });
-            }
-        }
-        let mut pairs: Vec<(u32, u32, SpringKind)> = Vec::with_capacity(triangles.len() * 3);
-        for tri in &triangles {
-            for (p, q) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-                pairs.push((p.min(q), p.max(q), SpringKind::Stretch));
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup_by_key(|&mut (a, b, _)| (a, b));
-        let edge_count = pairs.len();
-        let mut extras: Vec<(u32, u32, SpringKind)> = Vec::with_capacity(extra.len());
-        for &(p, q, kind) in extra {
+        validate_triangles(&triangles, n)?;
+        let mut keys: Vec<(u32, u32, usize)> = Vec::with_capacity(spring_list.len());
+        for (order, &(p, q, _)) in spring_list.iter().enumerate() {
             for i in [p, q] {
                 if i as usize >= n {
                     return Err(ClothBuildError::IndexOutOfRange {
@@ -177,23 +154,22 @@ impl ClothTopology {
                     });
                 }
             }
-            let (a, b) = (p.min(q), p.max(q));
-            if a == b {
-                return Err(ClothBuildError::ZeroLengthEdge { a, b });
+            if p == q {
+                return Err(ClothBuildError::ZeroLengthEdge { a: p, b: q });
             }
-            if pairs[..edge_count]
-                .binary_search_by(|&(x, y, _)| (x, y).cmp(&(a, b)))
-                .is_err()
-            {
-                extras.push((a, b, kind));
+            keys.push((p.min(q), p.max(q), order));
+        }
+        keys.sort_unstable();
+        let mut keep = vec![false; spring_list.len()];
+        for (k, key) in keys.iter().enumerate() {
+            if k == 0 || (keys[k - 1].0, keys[k - 1].1) != (key.0, key.1) {
+                keep[key.2] = true;
             }
         }
-        extras.sort_unstable_by_key(|&(a, b, k)| (k, a, b));
-        extras.dedup_by_key(|&mut (a, b, _)| (a, b));
-        pairs.extend(extras);
 
-        let mut springs = Vec::with_capacity(pairs.len());
-        for (a, b, kind) in pairs {
+        let mut springs = Vec::with_capacity(spring_list.len());
+        for (&(p, q, kind), _) in spring_list.iter().zip(&keep).filter(|(_, k)| **k) {
+            let (a, b) = (p.min(q), p.max(q));
             let rest_length = rest_positions[a as usize].distance(rest_positions[b as usize]);
             if rest_length <= 0.0 || rest_length.is_nan() {
                 return Err(ClothBuildError::ZeroLengthEdge { a, b });
@@ -254,4 +230,99 @@ impl ClothTopology {
     pub fn spring_counts(&self) -> [usize; 3] {
         self.kind_counts
     }
+}
+
+pub(crate) fn validate_triangles(triangles: &[[u32; 3]], n: usize) -> Result<(), ClothBuildError> {
+    for (t, tri) in triangles.iter().enumerate() {
+        for &i in tri {
+            if i as usize >= n {
+                return Err(ClothBuildError::IndexOutOfRange {
+                    index: i,
+                    vertex_count: n,
+                });
+            }
+        }
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            return Err(ClothBuildError::DegenerateTriangle { triangle: t });
+        }
+    }
+    Ok(())
+}
+
+/// The unique edges of `triangles` as stretch springs, sorted by `(a, b)`
+/// with `a < b` — the lab's edge list. Triangles must be valid.
+pub(crate) fn triangle_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32, SpringKind)> {
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(triangles.len() * 3);
+    for tri in triangles {
+        for (p, q) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            pairs.push((p.min(q), p.max(q)));
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+        .into_iter()
+        .map(|(a, b)| (a, b, SpringKind::Stretch))
+        .collect()
+}
+
+/// Shear and bending springs of a general triangle mesh, from neighbouring
+/// triangles: across each interior edge shared by exactly two triangles, a
+/// spring joins the two vertices opposite the edge. It is a **shear** spring
+/// when the shared edge is the longest edge of both triangles (the two
+/// triangles then form a quad and the edge is one of its diagonals, so the
+/// new spring is the other diagonal), and a **bending** spring otherwise (it
+/// spans the fold along the edge). On a triangulated grid this gives exactly
+/// the second diagonal of every cell as shear, and a spring across every
+/// side edge as bending. Only the kinds asked for are returned, sorted by
+/// `(kind, a, b)`.
+pub(crate) fn cross_edge_springs(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    shear: bool,
+    bend: bool,
+) -> Vec<(u32, u32, SpringKind)> {
+    // (edge a, edge b, opposite vertex, edge is the triangle's longest)
+    let mut sides: Vec<(u32, u32, u32, bool)> = Vec::with_capacity(triangles.len() * 3);
+    for tri in triangles {
+        let len = |p: u32, q: u32| positions[p as usize].distance_squared(positions[q as usize]);
+        let lengths = [
+            len(tri[0], tri[1]),
+            len(tri[1], tri[2]),
+            len(tri[2], tri[0]),
+        ];
+        let longest = lengths.iter().copied().fold(0.0, f32::max);
+        for k in 0..3 {
+            let (p, q, o) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            sides.push((p.min(q), p.max(q), o, lengths[k] >= longest));
+        }
+    }
+    sides.sort_unstable_by_key(|&(a, b, o, _)| (a, b, o));
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < sides.len() {
+        let mut end = k + 1;
+        while end < sides.len() && (sides[end].0, sides[end].1) == (sides[k].0, sides[k].1) {
+            end += 1;
+        }
+        if end - k == 2 {
+            let (c, d) = (sides[k].2, sides[k + 1].2);
+            let kind = if sides[k].3 && sides[k + 1].3 {
+                SpringKind::Shear
+            } else {
+                SpringKind::Bend
+            };
+            let wanted = match kind {
+                SpringKind::Shear => shear,
+                _ => bend,
+            };
+            if wanted && c != d {
+                out.push((c.min(d), c.max(d), kind));
+            }
+        }
+        k = end;
+    }
+    out.sort_unstable_by_key(|&(a, b, kind)| (kind, a, b));
+    out.dedup_by_key(|&mut (a, b, _)| (a, b));
+    out
 }

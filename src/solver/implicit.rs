@@ -16,11 +16,13 @@
 //! 3. `vᵢ ← vᵢ + (xᵢ − x̃ᵢ)/dt` (lab 1.c).
 //!
 //! `k` in `4k` is the stiffness of the cloth's springs (the largest, if it
-//! has several kinds). Pinned vertices never move.
+//! has several kinds). Pinned vertices never move. A penalty sphere adds its
+//! force to `f` and its stiffness `c` to the diagonal of a vertex in contact.
 
 use bevy::math::Vec3A;
 
 use super::{StepError, StepParams, StepReport, check_state, gradient};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState, ParamError};
 
 /// Settings of the implicit solver.
@@ -80,10 +82,17 @@ pub struct ImplicitWorkspace {
     inv_diag: Vec<f32>,
     /// The iterate before last, for Chebyshev; empty without it.
     x_prev: Vec<Vec3A>,
+    /// Inverse diagonal including contact stiffness; empty without spheres.
+    contact_diag: Vec<f32>,
 }
 
 impl ImplicitWorkspace {
-    fn prepare(&mut self, vertices: usize, springs: usize, chebyshev: bool) {
+    fn prepare(&mut self, vertices: usize, springs: usize, chebyshev: bool, contacts: bool) {
+        if contacts {
+            self.contact_diag.resize(vertices, 0.0);
+        } else {
+            self.contact_diag = Vec::new();
+        }
         self.x_tilde.resize(vertices, Vec3A::ZERO);
         self.gradient.resize(vertices, Vec3A::ZERO);
         self.inv_diag.resize(vertices, 0.0);
@@ -110,6 +119,7 @@ pub fn step(
     state: &mut ClothState,
     params: &StepParams,
     config: &ImplicitConfig,
+    spheres: &[PenaltySphere],
     ws: &mut ImplicitWorkspace,
 ) -> Result<StepReport, StepError> {
     params.validate()?;
@@ -120,6 +130,7 @@ pub fn step(
         n,
         model.topology().springs().len(),
         config.chebyshev_rho.is_some(),
+        !spheres.is_empty(),
     );
     let dt = params.dt;
     let inv_dt2 = 1.0 / (dt * dt);
@@ -146,16 +157,14 @@ pub fn step(
     // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
     let mut omega = 1.0f32;
     for k in 0..config.iterations {
-        gradient(
-            model,
-            x,
-            &ws.x_tilde,
-            params,
-            &mut ws.terms,
-            &mut ws.gradient,
-        );
+        objective_gradient(model, x, params, spheres, inv_dt2, hessian_springs, ws);
         // Pinned vertices have a zero gradient, so neither update moves them.
-        let updates = x.iter_mut().zip(&ws.gradient).zip(&ws.inv_diag);
+        let inv_diag = if spheres.is_empty() {
+            &ws.inv_diag
+        } else {
+            &ws.contact_diag
+        };
+        let updates = x.iter_mut().zip(&ws.gradient).zip(inv_diag);
         match config.chebyshev_rho {
             None => {
                 for ((xi, g), d) in updates {
@@ -179,14 +188,7 @@ pub fn step(
     }
 
     // Residual at the final iterate.
-    gradient(
-        model,
-        x,
-        &ws.x_tilde,
-        params,
-        &mut ws.terms,
-        &mut ws.gradient,
-    );
+    objective_gradient(model, x, params, spheres, inv_dt2, hessian_springs, ws);
     let residual = ws
         .gradient
         .iter()
@@ -205,4 +207,62 @@ pub fn step(
         iterations: config.iterations,
         residual: Some(residual),
     })
+}
+
+/// The gradient at `x` into `ws.gradient`, with penalty contacts (which
+/// also refresh `ws.contact_diag`).
+fn objective_gradient(
+    model: &ClothModel,
+    x: &[Vec3A],
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+    inv_dt2: f32,
+    hessian_springs: f32,
+    ws: &mut ImplicitWorkspace,
+) {
+    gradient(
+        model,
+        x,
+        &ws.x_tilde,
+        params,
+        &mut ws.terms,
+        &mut ws.gradient,
+    );
+    if !spheres.is_empty() {
+        add_penalty(
+            model,
+            x,
+            spheres,
+            &mut ws.gradient,
+            &mut ws.contact_diag,
+            inv_dt2,
+            hessian_springs,
+        );
+    }
+}
+
+/// Adds penalty forces to the gradient (`g −= f_c`) and writes the inverse
+/// diagonal with each contact's stiffness `c` added.
+fn add_penalty(
+    model: &ClothModel,
+    x: &[Vec3A],
+    spheres: &[PenaltySphere],
+    gradient: &mut [Vec3A],
+    inv_diag: &mut [f32],
+    inv_dt2: f32,
+    hessian_springs: f32,
+) {
+    let pinned = model.pinned();
+    for (i, &m) in model.masses().iter().enumerate() {
+        let mut diag = m * inv_dt2 + hessian_springs;
+        if !pinned[i] {
+            for sphere in spheres {
+                if let Some(contact) = sphere.contact(x[i]) {
+                    gradient[i] -= contact.force;
+                    diag += sphere.stiffness;
+                }
+            }
+        }
+        inv_diag[i] = 1.0 / diag;
+    }
 }

@@ -9,12 +9,21 @@
 //! |---|---|---|
 //! | implicit Euler, diagonal-Hessian Newton (Jacobi), optional Chebyshev | [`implicit::step`] | part 1 |
 //! | position-based dynamics, Jacobi strain limiting | [`pbd::step`] | part 2 |
+//! | symplectic Euler (`A = M`) | [`symplectic::step`] | the assignment's first stage |
+//! | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear::step`] | the assignment |
+//!
+//! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
+//! inside every step: as forces with their stiffness in the linear system
+//! (linearly implicit), in the gradient and diagonal (implicit Jacobi), or
+//! as explicit forces (symplectic, and PBD's velocity prediction).
 //!
 //! Shared measures — [`objective`], [`gradient`], [`max_stretch`],
 //! [`energy`] — are here.
 
 pub mod implicit;
+pub mod linear;
 pub mod pbd;
+pub mod symplectic;
 
 use bevy::math::{Vec3, Vec3A};
 use thiserror::Error;
@@ -131,6 +140,9 @@ pub enum StepError {
     /// A parameter is invalid.
     #[error(transparent)]
     Params(#[from] ParamError),
+    /// The linear solve failed; see [`SolveError`].
+    #[error(transparent)]
+    Solve(#[from] SolveError),
     /// The state does not have one position and velocity per vertex.
     #[error("state has {got} vertices, the model {expected}")]
     StateMismatch {
@@ -139,6 +151,19 @@ pub enum StepError {
         /// Positions or velocities in the state.
         got: usize,
     },
+}
+
+/// Why a linear solve failed. The state is left untouched.
+#[derive(Error, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveError {
+    /// Conjugate gradients met a direction of non-positive curvature: `A` is
+    /// not positive definite (compressed springs under the exact spring
+    /// Jacobian, or an exact penalty Jacobian).
+    #[error("the system matrix is not positive definite")]
+    NotPositiveDefinite,
+    /// The sparse factorisation failed or produced a non-finite solution.
+    #[error("the sparse factorisation failed")]
+    Factorization,
 }
 
 /// What a step reports about its solve.

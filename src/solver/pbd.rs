@@ -10,13 +10,16 @@
 //!    0.2-weighted average `x'ᵢ = (0.2 xᵢ + Σ proposals)/(0.2 + nᵢ)` of its
 //!    position and its `nᵢ` proposals, and `vᵢ ← vᵢ + (x'ᵢ − xᵢ)/dt`.
 //!
-//! The proposals are computed once per spring and gathered per vertex.
+//! A penalty sphere acts as an explicit force in the velocity prediction
+//! (`v ← v + dt·f_c/m`). The proposals are computed once per spring and
+//! gathered per vertex.
 //! Pinned vertices never move (but their springs still propose positions to
 //! their neighbours).
 
 use bevy::math::Vec3A;
 
 use super::{StepError, StepParams, StepReport, check_state};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState, ParamError};
 
 /// The weight of a vertex's own position in the lab's Jacobi average.
@@ -60,6 +63,7 @@ pub fn step(
     state: &mut ClothState,
     params: &StepParams,
     config: &PbdConfig,
+    spheres: &[PenaltySphere],
     ws: &mut PbdWorkspace,
 ) -> Result<StepReport, StepError> {
     params.validate()?;
@@ -80,7 +84,13 @@ pub fn step(
 
     for i in 0..n {
         if !pinned[i] {
-            v[i] = v[i] * params.damping + dt * gravity;
+            let mut accel = gravity;
+            for sphere in spheres {
+                if let Some(contact) = sphere.contact(x[i]) {
+                    accel += contact.force / model.masses()[i];
+                }
+            }
+            v[i] = v[i] * params.damping + dt * accel;
             x[i] += dt * v[i];
         }
     }

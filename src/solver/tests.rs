@@ -32,6 +32,7 @@ fn swinging(steps: usize) -> (ClothModel, ClothState) {
             &mut state,
             &StepParams::LAB,
             &ImplicitConfig::default(),
+            &[],
             &mut ws,
         )
         .unwrap();
@@ -86,7 +87,7 @@ fn jacobi_residual_falls_with_iterations_and_chebyshev_beats_it() {
     let residual = |config: ImplicitConfig| {
         let mut state = start.clone();
         let mut ws = ImplicitWorkspace::default();
-        implicit::step(&model, &mut state, &StepParams::LAB, &config, &mut ws)
+        implicit::step(&model, &mut state, &StepParams::LAB, &config, &[], &mut ws)
             .unwrap()
             .residual
             .unwrap()
@@ -111,6 +112,7 @@ fn implicit_step_keeps_pins_and_is_deterministic() {
                 &mut state,
                 &StepParams::LAB,
                 &ImplicitConfig::chebyshev(32, 0.995),
+                &[],
                 &mut ws,
             )
             .unwrap();
@@ -165,6 +167,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &mut state,
             &params,
             &ImplicitConfig::default(),
+            &[],
             &mut ImplicitWorkspace::default(),
         )
         .unwrap_err();
@@ -174,6 +177,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &mut state,
             &params,
             &PbdConfig::default(),
+            &[],
             &mut PbdWorkspace::default(),
         )
         .unwrap_err();
@@ -187,6 +191,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &mut state,
             &StepParams::LAB,
             &ImplicitConfig::chebyshev(32, 1.0),
+            &[],
             &mut ImplicitWorkspace::default()
         ),
         Err(StepError::Params(ParamError::Rho(1.0)))
@@ -197,6 +202,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &mut state,
             &StepParams::LAB,
             &PbdConfig { iterations: 0 },
+            &[],
             &mut PbdWorkspace::default()
         ),
         Err(StepError::Params(ParamError::Iterations))
@@ -208,6 +214,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &mut state,
             &StepParams::LAB,
             &PbdConfig::default(),
+            &[],
             &mut PbdWorkspace::default()
         ),
         Err(StepError::StateMismatch {
@@ -228,6 +235,7 @@ fn pbd_stretch_falls_with_iterations_and_pins_hold() {
                 &mut state,
                 &StepParams::LAB,
                 &PbdConfig { iterations },
+                &[],
                 &mut ws,
             )
             .unwrap();

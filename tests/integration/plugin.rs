@@ -80,7 +80,8 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     assert_eq!(fixed_system_count(&mut app), 4);
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
-    assert_eq!(fixed_system_count(&mut full), 6);
+    // Core (2) + four methods + sphere gathering and projection + counter.
+    assert_eq!(fixed_system_count(&mut full), 9);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
@@ -104,7 +105,7 @@ fn swapping_the_method_component_switches_the_method() {
     let mut app = app();
     let cloth = spawn_lab(&mut app, ImplicitSolver::default());
     run_steps(&mut app, 10);
-    assert_eq!(stats(&app, cloth).method, "implicit");
+    assert_eq!(stats(&app, cloth).method, "jacobi");
     app.world_mut()
         .entity_mut(cloth)
         .insert(PbdSolver::default());
@@ -122,7 +123,18 @@ fn swapping_the_method_component_switches_the_method() {
     run_steps(&mut app, 1);
     assert!(!app.world().entity(cloth).contains::<PbdSolver>());
     let s = stats(&app, cloth);
-    assert_eq!((s.method, s.steps, s.iterations), ("implicit", 21, 16));
+    assert_eq!((s.method, s.steps, s.iterations), ("chebyshev", 21, 16));
+    // To the assignment's methods and back: one method at a time throughout.
+    app.world_mut()
+        .entity_mut(cloth)
+        .insert(LinearImplicitSolver::direct());
+    run_steps(&mut app, 1);
+    assert!(!app.world().entity(cloth).contains::<ImplicitSolver>());
+    assert_eq!(stats(&app, cloth).method, "linear-direct");
+    app.world_mut().entity_mut(cloth).insert(SymplecticSolver);
+    run_steps(&mut app, 1);
+    assert!(!app.world().entity(cloth).contains::<LinearImplicitSolver>());
+    assert_eq!(stats(&app, cloth).method, "symplectic");
 }
 
 #[test]
@@ -204,7 +216,7 @@ fn a_diverging_cloth_is_stopped_restored_and_reported() {
     let seen = &app.world().resource::<Diverged>().0;
     assert_eq!(seen.len(), 1, "reported once");
     assert_eq!(seen[0].entity, cloth);
-    assert_eq!(seen[0].method, "implicit");
+    assert_eq!(seen[0].method, "chebyshev");
     assert_eq!(seen[0].step, s.steps);
     // Restored to its last good (finite) state and no longer stepped.
     let x = positions(&app, cloth);

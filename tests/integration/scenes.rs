@@ -21,7 +21,7 @@ fn lab_cloth_hangs_from_its_pins_and_comes_to_rest() {
     assert!(lowest < -9.0, "lowest y {lowest}");
     let s = stats(&app, cloth);
     assert_eq!(s.steps, 1500);
-    assert_eq!(s.method, "implicit");
+    assert_eq!(s.method, "jacobi");
     assert_eq!(s.iterations, 32);
     // At rest after 50 s (0.99 damping per step), with bounded stretch: the
     // springs at the pins carry the whole 441-unit weight at k = 8000 and sit

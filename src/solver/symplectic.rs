@@ -1,0 +1,63 @@
+//! Symplectic Euler — the assignment's first stage (`A = M`).
+//!
+//! With `A = M` the linear system `M v⁺ = M v + h f` has a diagonal matrix,
+//! so it is solved exactly, row by row, by dividing by the particle's mass:
+//! `v⁺ = v + h M⁻¹ f(x)`, then `x ← x + h v⁺`. No factorisation or iteration
+//! is needed. `f` holds spring, gravity and penalty forces; fixed particles
+//! are skipped. The step is explicit in the forces, so it is stable only
+//! for `h` below about `2/ω_max` (`ω_max²` the largest eigenvalue of
+//! `M⁻¹K`); past that it diverges, and the divergence guard catches it.
+
+use bevy::math::Vec3A;
+
+use super::{StepError, StepParams, StepReport, check_state, spring_terms};
+use crate::collision::PenaltySphere;
+use crate::model::{ClothModel, ClothState};
+
+/// Scratch of the symplectic solver: one term per spring.
+#[derive(Clone, Debug, Default)]
+pub struct SymplecticWorkspace {
+    terms: Vec<Vec3A>,
+}
+
+/// Advances `state` by one symplectic Euler step (see the module docs).
+pub fn step(
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+    ws: &mut SymplecticWorkspace,
+) -> Result<StepReport, StepError> {
+    params.validate()?;
+    check_state(model, state)?;
+    ws.terms
+        .resize(model.topology().springs().len(), Vec3A::ZERO);
+    // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
+    spring_terms(model, &state.positions, &params.stiffness, &mut ws.terms);
+    let h = params.dt;
+    let gravity = Vec3A::from(params.gravity);
+    let adjacency = model.topology().adjacency();
+    let pinned = model.pinned();
+    for (i, &m) in model.masses().iter().enumerate() {
+        if pinned[i] {
+            continue;
+        }
+        let x = state.positions[i];
+        let mut f = gravity * m;
+        for inc in adjacency.of(i) {
+            f -= ws.terms[inc.spring as usize] * inc.sign;
+        }
+        for sphere in spheres {
+            if let Some(contact) = sphere.contact(x) {
+                f += contact.force;
+            }
+        }
+        let v = state.velocities[i] * params.damping + f * (h / m);
+        state.velocities[i] = v;
+        state.positions[i] = x + h * v;
+    }
+    Ok(StepReport {
+        iterations: 0,
+        residual: None,
+    })
+}
