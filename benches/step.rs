@@ -1,4 +1,5 @@
-//! One step of each pipeline on the lab cloth at 21×21 and 101×101.
+//! One step of each pipeline on the lab cloth at 21×21 and 101×101, and of
+//! the assignment's methods on its cloth at 10×10, 30×30 and 100×100.
 //!
 //! The 101×101 cloth keeps the lab's size (10×10 units) and total mass (441,
 //! spread over the vertices) and the lab's `k = 8000`: on a square grid a
@@ -12,9 +13,11 @@ use std::hint::black_box;
 use bevy::math::Affine3A;
 use bevy_cloth::collision::{Sphere, project_spheres};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
-use bevy_cloth::solver::StepParams;
 use bevy_cloth::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
+use bevy_cloth::solver::linear::{self, LinearConfig, LinearSolver, LinearWorkspace};
 use bevy_cloth::solver::pbd::{self, PbdConfig, PbdWorkspace};
+use bevy_cloth::solver::symplectic::{self, SymplecticWorkspace};
+use bevy_cloth::solver::{SpringStiffness, StepParams};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
 fn scene(n: usize) -> (ClothModel, StepParams) {
@@ -87,12 +90,66 @@ fn steps(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("sphere_projection", n), |b| {
             b.iter(|| {
                 state.copy_from(&start);
-                black_box(project_spheres(&model, &mut state, &sphere, 0.0, params.dt));
+                black_box(project_spheres(
+                    &model,
+                    &mut state,
+                    &sphere,
+                    0.0,
+                    params.dt as f32,
+                ));
             })
         });
     }
     group.finish();
 }
 
-criterion_group!(benches, steps);
+/// One linearly implicit step of the assignment's cloth (stretch, shear and
+/// bending springs; its parameters) at 10×10, 30×30 and 100×100, with CG
+/// (25 iterations, 1e-6, warm-started) and with the direct LDLᵀ solve
+/// (symbolic analysis reused), from a swinging state.
+fn linear(c: &mut Criterion) {
+    let mut group = c.benchmark_group("linear");
+    group.sample_size(20);
+    let params = StepParams {
+        dt: 5e-3,
+        stiffness: SpringStiffness::uniform(10.0),
+        damping: 1.0,
+        ..StepParams::LAB
+    };
+    for n in [10, 30, 100] {
+        let model = ClothBuilder::assignment(n, n).build().expect("valid cloth");
+        let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = LinearWorkspace::default();
+        let direct = LinearConfig {
+            solver: LinearSolver::Direct,
+            ..LinearConfig::default()
+        };
+        for _ in 0..20 {
+            linear::step(&model, &mut start, &params, &direct, &[], &mut ws).expect("valid step");
+        }
+        for (name, config) in [("cg25", LinearConfig::default()), ("direct", direct)] {
+            let mut ws = LinearWorkspace::default();
+            let mut state = start.clone();
+            group.bench_function(BenchmarkId::new(name, n), |b| {
+                b.iter(|| {
+                    state.copy_from(&start);
+                    linear::step(&model, &mut state, &params, &config, &[], &mut ws).unwrap();
+                    black_box(&state);
+                })
+            });
+        }
+        let mut state = start.clone();
+        let mut ws = SymplecticWorkspace::default();
+        group.bench_function(BenchmarkId::new("symplectic", n), |b| {
+            b.iter(|| {
+                state.copy_from(&start);
+                symplectic::step(&model, &mut state, &params, &[], &mut ws).unwrap();
+                black_box(&state);
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, steps, linear);
 criterion_main!(benches);

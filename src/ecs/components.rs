@@ -124,7 +124,7 @@ impl Default for ClothParams {
 
 impl ClothParams {
     /// The solver parameters for a step of `dt` seconds.
-    pub fn step_params(&self, dt: f32) -> StepParams {
+    pub fn step_params(&self, dt: f64) -> StepParams {
         StepParams {
             dt,
             stiffness: self.stiffness,

@@ -118,7 +118,7 @@ fn guard_and_measure(
     mut diverged: Local<Parallel<Vec<ClothDiverged>>>,
     mut messages: MessageWriter<ClothDiverged>,
 ) {
-    let dt = time.delta_secs();
+    let dt = time.delta_secs_f64();
     if dt <= 0.0 {
         return;
     }

@@ -194,7 +194,7 @@ fn step_cloths<M: ClothMethod>(
     colliders: Res<ClothColliders>,
     mut cloths: Query<StepData<M>>,
 ) {
-    let dt = time.delta_secs();
+    let dt = time.delta_secs_f64();
     if dt <= 0.0 {
         return;
     }

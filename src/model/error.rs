@@ -110,7 +110,7 @@ pub enum MeshReadError {
 pub enum ParamError {
     /// The time step is zero, negative or not finite.
     #[error("time step {0} must be finite and positive")]
-    TimeStep(f32),
+    TimeStep(f64),
     /// A spring stiffness is zero, negative or not finite.
     #[error("stiffness {0} must be finite and positive")]
     Stiffness(f32),

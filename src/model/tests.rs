@@ -184,3 +184,83 @@ fn bevy_meshes_become_cloths() {
         Err(MeshReadError::MissingPositions)
     );
 }
+
+#[test]
+fn the_assignment_grid_builds_each_spring_kind_only_when_asked() {
+    let (rows, cols) = (4, 5);
+    let stretch_only = ClothBuilder::spring_grid(
+        rows,
+        cols,
+        Vec3::ZERO,
+        Vec3::X,
+        Vec3::NEG_Z,
+        Vec3::new(1.0, 0.0, -1.0),
+    )
+    .build()
+    .unwrap();
+    let x = rows * (cols - 1);
+    let y = cols * (rows - 1);
+    assert_eq!(stretch_only.topology().spring_counts(), [x + y, 0, 0]);
+    let full = ClothBuilder::assignment(rows, cols).build().unwrap();
+    let shear = 2 * (rows - 1) * (cols - 1);
+    let bend = rows * (cols - 2) + cols * (rows - 2);
+    assert_eq!(full.topology().spring_counts(), [x + y, shear, bend]);
+    // The assignment's layout: particle i*cols + j, row 0 at z = 0, fixed
+    // corners of row 0, total mass spread evenly.
+    let p = full.topology().rest_positions();
+    assert_eq!(p[0], Vec3::new(-0.25, 0.5, 0.0));
+    assert_eq!(p[cols - 1], Vec3::new(0.25, 0.5, 0.0));
+    assert_eq!(p[(rows - 1) * cols], Vec3::new(-0.25, 0.5, -0.5));
+    assert_eq!(full.pins(), &[0, cols as u32 - 1]);
+    assert!((full.masses().iter().sum::<f32>() - 0.1).abs() < 1e-6);
+    // Spring order follows the assignment: x springs first.
+    let s = full.topology().springs()[0];
+    assert_eq!((s.a, s.b, s.kind), (0, 1, SpringKind::Stretch));
+    let bend_spring = full
+        .topology()
+        .springs()
+        .iter()
+        .find(|s| s.kind == SpringKind::Bend)
+        .unwrap();
+    assert_eq!((bend_spring.a, bend_spring.b), (0, 2));
+}
+
+#[test]
+fn triangle_meshes_get_shear_and_bending_from_neighbouring_triangles() {
+    let n = 5;
+    let plain = ClothBuilder::lab_grid(n).build().unwrap();
+    assert_eq!(
+        plain.topology().spring_counts(),
+        [2 * n * (n - 1) + (n - 1) * (n - 1), 0, 0]
+    );
+    let model = ClothBuilder::lab_grid(n)
+        .with_shear_springs()
+        .with_bending_springs()
+        .build()
+        .unwrap();
+    let [stretch, shear, bend] = model.topology().spring_counts();
+    assert_eq!(stretch, plain.topology().springs().len());
+    // Every cell's diagonal is the longest edge of both its triangles: the
+    // other diagonal becomes a shear spring.
+    assert_eq!(shear, (n - 1) * (n - 1));
+    // Every interior side edge (not a diagonal) gets a bending spring.
+    assert_eq!(bend, 2 * (n - 1) * (n - 2));
+    let topo = model.topology();
+    for s in topo
+        .springs()
+        .iter()
+        .filter(|s| s.kind == SpringKind::Shear)
+    {
+        let d = topo.rest_positions()[s.a as usize] - topo.rest_positions()[s.b as usize];
+        assert!(
+            (d.length() - 2.5 * 2f32.sqrt()).abs() < 1e-5,
+            "shear is a cell diagonal"
+        );
+    }
+    // Only the kind asked for.
+    let only_bend = ClothBuilder::lab_grid(n)
+        .with_bending_springs()
+        .build()
+        .unwrap();
+    assert_eq!(only_bend.topology().spring_counts(), [stretch, 0, bend]);
+}

@@ -132,7 +132,7 @@ pub fn step(
         config.chebyshev_rho.is_some(),
         !spheres.is_empty(),
     );
-    let dt = params.dt;
+    let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);
     let pinned = model.pinned();
     let hessian_springs = 4.0 * params.stiffness.max_present(model);

@@ -383,7 +383,7 @@ impl LinearSystem {
         spheres: &[PenaltySphere],
     ) {
         debug_assert_eq!(self.key, pattern_key(model));
-        let h = f64::from(params.dt);
+        let h = params.dt;
         let h2 = h * h;
         let gravity = params.gravity.as_dvec3();
         self.values.fill(0.0);
@@ -569,7 +569,7 @@ pub fn step(
         }
     };
     let (iterations, residual) = result.map_err(StepError::Solve)?;
-    let h = params.dt;
+    let h = params.dt as f32;
     for i in 0..state.positions.len() {
         if let Some(d) = system.dof(i) {
             let v = Vec3A::new(
@@ -707,3 +707,7 @@ fn solve_direct(
         },
     ))
 }
+
+#[cfg(test)]
+#[path = "linear_tests.rs"]
+mod tests;

@@ -88,8 +88,9 @@ impl Default for SpringStiffness {
 /// Physical parameters of one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepParams {
-    /// Time step in seconds.
-    pub dt: f32,
+    /// Time step in seconds (`f64`, as `Time` keeps it: the assembled
+    /// systems use it exactly; the `f32` loops round it once).
+    pub dt: f64,
     /// Spring stiffness per kind.
     pub stiffness: SpringStiffness,
     /// Velocity multiplier applied at the start of each step (the lab: 0.99).
@@ -110,7 +111,7 @@ impl StepParams {
 
     /// Checks every parameter; a solver calls this before it touches state.
     pub fn validate(&self) -> Result<(), ParamError> {
-        if !(self.dt.is_finite() && self.dt > 0.0) {
+        if !(self.dt.is_finite() && self.dt > 0.0 && (self.dt as f32) > 0.0) {
             return Err(ParamError::TimeStep(self.dt));
         }
         for k in self.stiffness.as_array() {
@@ -231,7 +232,8 @@ pub fn gradient(
     out: &mut [Vec3A],
 ) {
     spring_terms(model, x, &params.stiffness, terms);
-    let inv_dt2 = 1.0 / (params.dt * params.dt);
+    let dt = params.dt as f32;
+    let inv_dt2 = 1.0 / (dt * dt);
     let gravity = Vec3A::from(params.gravity);
     let adjacency = model.topology().adjacency();
     let masses = model.masses();
@@ -254,7 +256,7 @@ pub fn gradient(
 /// `Σ m/(2dt²)‖x − x̃‖² + Σ_springs ½k(l − L)² − Σ m g·x`, in `f64`.
 /// Its gradient is [`gradient`].
 pub fn objective(model: &ClothModel, x: &[Vec3A], x_tilde: &[Vec3A], params: &StepParams) -> f64 {
-    let inv_dt2 = 1.0 / (f64::from(params.dt) * f64::from(params.dt));
+    let inv_dt2 = 1.0 / (params.dt * params.dt);
     let mut e = 0.0;
     for (i, &m) in model.masses().iter().enumerate() {
         let m = f64::from(m);

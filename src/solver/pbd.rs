@@ -74,7 +74,7 @@ pub fn step(
     let adjacency = model.topology().adjacency();
     let pinned = model.pinned();
     ws.proposals.resize(springs.len(), [Vec3A::ZERO; 2]);
-    let dt = params.dt;
+    let dt = params.dt as f32;
     let inv_dt = 1.0 / dt;
     let gravity = Vec3A::from(params.gravity);
     let ClothState {

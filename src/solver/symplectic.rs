@@ -34,7 +34,7 @@ pub fn step(
         .resize(model.topology().springs().len(), Vec3A::ZERO);
     // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
     spring_terms(model, &state.positions, &params.stiffness, &mut ws.terms);
-    let h = params.dt;
+    let h = params.dt as f32;
     let gravity = Vec3A::from(params.gravity);
     let adjacency = model.topology().adjacency();
     let pinned = model.pinned();
