@@ -1,10 +1,16 @@
 //! # bevy_cloth
 //!
 //! Cloth simulation for the [Bevy](https://bevy.org) game engine, with the
-//! methods of two course specifications implemented in full: the GAMES103
-//! cloth lab (implicit Euler by a diagonal-Hessian Newton/Jacobi iteration
-//! with Chebyshev acceleration; position-based dynamics with Jacobi strain
-//! limiting; sphere collision by impulse projection).
+//! methods of two course specifications implemented in full:
+//!
+//! - the GAMES103 cloth lab: implicit Euler by a diagonal-Hessian
+//!   Newton/Jacobi iteration with Chebyshev acceleration; position-based
+//!   dynamics with Jacobi strain limiting; sphere collision by impulse
+//!   projection;
+//! - a mass-spring assignment: symplectic Euler, linearly implicit Euler
+//!   (`A = M − h²K`) with sparse matrices solved by conjugate gradients or a
+//!   sparse LDLᵀ factorisation, stretch/shear/bending springs, and penalty
+//!   sphere collision inside the solve.
 //!
 //! # Getting Started
 //!
@@ -19,7 +25,7 @@
 //!
 //! | Feature | Description | Default feature |
 //! |---|---|---|
-//! | *(none yet)* | The library needs only Bevy's `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and `bevy_mesh` features: no renderer or window is built. | — |
+//! | *(none yet)* | The library needs only Bevy's `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and `bevy_mesh` features, and `faer` (sparse linear algebra, without its rayon thread pool): no renderer or window is built. | — |
 //!
 //! ## Add the Plugins
 //!
@@ -53,11 +59,35 @@
 //! - Errors: [`ClothBuildError`](model::ClothBuildError), [`ParamError`](model::ParamError)
 //!
 //! ## Methods
-//! - [`ImplicitSolver`] / [`ImplicitPlugin`]: the lab's part 1 ([`solver::implicit`])
-//! - [`PbdSolver`] / [`PbdPlugin`]: the lab's part 2 ([`solver::pbd`])
+//!
+//! | Component / plugin | Method | Spec | Solver |
+//! |---|---|---|---|
+//! | [`ImplicitSolver`] / [`ImplicitPlugin`] | implicit Euler, diagonal-Hessian Jacobi, optional Chebyshev | lab part 1 | [`solver::implicit`] |
+//! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
+//! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
+//! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
 //!
 //! ## Collision
-//! - [`SphereCollider`] / [`SphereCollisionPlugin`] ([`collision`])
+//! - [`SphereCollider`] / [`SphereCollisionPlugin`] ([`collision`]):
+//!   [`SphereResponse::Projection`] (the lab's impulse projection, after the
+//!   step) or [`SphereResponse::Penalty`] (the assignment's penalty force,
+//!   inside the step)
+//!
+//! ## The assignment's golden first step
+//!
+//! The assignment prints `A` and `b` of the first step of its 2×2 cloth
+//! (`h = 5e-3`, gravity `(0, −9.8, 0)`, total mass 0.1, `E = 10`) without
+//! saying where the grid lies or which particles are fixed. The matrix
+//! determines it up to symmetry: it is 6×6, so two of the four particles are
+//! fixed; the `y` diagonal is exactly `m = 0.025` (no stiffness along `y`), so
+//! every spring lies in a horizontal plane; `xx` and `zz` are both
+//! `m + 1.5·h²E = 0.025375` and the `xz` coupling is `±h²E/2`, which a
+//! stretch spring plus a 45° shear spring to a fixed particle give when the
+//! grid is square; the `−h²E` coupling between the two free particles' `x`
+//! makes them a row along `x`. So: a square horizontal grid, the two
+//! particles of one row fixed. [`ClothBuilder::assignment`](model::ClothBuilder::assignment)
+//! builds it (0.5×0.5 at `y = 0.5`, row 0 fixed) and a test reproduces every
+//! printed entry to its four decimals.
 //!
 //! ## Scheduling
 //! - [`ClothPlugins::new`] takes the schedule (default `FixedUpdate`);
@@ -99,8 +129,13 @@
 //!                       v ← v + (x − x̃)/dt
 //!             pbd:      v ← damping·v + dt·g; x ← x + dt·v
 //!                       K times: Jacobi strain limiting, v updated with x
-//! Collide:  for each cloth, each sphere: project vertices inside to the surface
-//! SyncOut:  for each cloth: non-finite? restore last good, stop, send ClothDiverged
+//!             symplectic:        v ← damping·v + h·M⁻¹f(x); x ← x + h·v
+//!             linear implicit:   fill A = M − h²K, b = M·damping·v + h·f (pattern reused)
+//!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
+//!             (penalty spheres act inside the step: forces, and stiffness in A)
+//! Collide:  for each cloth, each projection sphere: move vertices inside to the surface
+//! SyncOut:  for each cloth: non-finite or failed solve? restore last good, stop,
+//!           send ClothDiverged
 //!           else record max stretch and energy in ClothStats
 //! Last:     (user hook)
 //! ```
@@ -120,6 +155,12 @@
 //!
 //! **My cloth stretches a lot.** 32 Jacobi iterations do not converge at
 //! `k = 8000`; use Chebyshev, more iterations, or PBD.
+//!
+//! **The linearly implicit method stopped with `SolveFailed`, or went
+//! wild.** With the assignment's exact spring blocks, compressed springs make
+//! `A` indefinite (stiff springs, light particles, large steps): CG then
+//! fails and LDLᵀ returns a meaningless solution. Use
+//! [`SpringJacobian::ClampCompression`](solver::linear::SpringJacobian).
 //!
 //! # License
 //!
@@ -168,6 +209,8 @@ pub mod prelude {
 /// | [`ClothCorePlugin`] | Components, [`ClothSystems`], placing and pinning cloths, divergence guard. |
 /// | [`ImplicitPlugin`] | Steps cloths with an [`ImplicitSolver`] (implicit Euler, Jacobi/Chebyshev). |
 /// | [`PbdPlugin`] | Steps cloths with a [`PbdSolver`] (position-based, strain limiting). |
+/// | [`SymplecticPlugin`] | Steps cloths with a [`SymplecticSolver`] (symplectic Euler). |
+/// | [`LinearImplicitPlugin`] | Steps cloths with a [`LinearImplicitSolver`] (sparse CG or LDLᵀ). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or

@@ -6,7 +6,7 @@
 //! 1. damp: `vᵢ ← damping·vᵢ`; predict `x̃ᵢ = xᵢ + dt·vᵢ`; initial guess
 //!    `xᵢ = x̃ᵢ` (lab 1.a);
 //! 2. `K` times: the gradient `g = M(x − x̃)/dt² − f(x)` of the implicit-Euler
-//!    objective (lab 1.b, [`gradient`](super::gradient)), then the
+//!    objective (lab 1.b, [`gradient`]), then the
 //!    diagonal-Hessian update `xᵢ ← xᵢ − gᵢ / (mᵢ/dt² + 4k)` (lab 1.c).
 //!    With Chebyshev acceleration (lab 1.d; Wang 2015, "A Chebyshev
 //!    semi-iterative approach for accelerating projective and position-based
