@@ -171,7 +171,11 @@
 pub mod collision;
 pub mod ecs;
 pub mod model;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod solver;
+#[cfg(feature = "egui")]
+pub mod ui;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 use bevy::ecs::intern::Interned;
@@ -180,20 +184,20 @@ use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
     Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods,
-    ClothParams, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason,
-    ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodPlugin,
-    PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
-    SymplecticSolver,
+    ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
+    DivergenceReason, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver,
+    MethodPlugin, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
+    SymplecticPlugin, SymplecticSolver,
 };
 
 /// Everything a game needs, in one import.
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothStats, ClothStatus,
-        ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin,
-        LinearImplicitSolver, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin,
-        SphereResponse, SymplecticPlugin, SymplecticSolver,
+        Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothSimulation, ClothStats,
+        ClothStatus, ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver,
+        LinearImplicitPlugin, LinearImplicitSolver, PbdPlugin, PbdSolver, SphereCollider,
+        SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
     pub use crate::solver::linear::{

@@ -46,6 +46,7 @@ impl Plugin for ClothCorePlugin {
             .register_type::<ClothStats>()
             .register_type::<SpringStiffnessReflect>()
             .init_resource::<ClothMethods>()
+            .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()
             .add_message::<ClothDiverged>()
             .configure_sets(
@@ -60,6 +61,20 @@ impl Plugin for ClothCorePlugin {
                 )
                     .chain(),
             )
+            .configure_sets(
+                self.schedule,
+                (
+                    ClothSystems::SyncIn,
+                    ClothSystems::Step,
+                    ClothSystems::Collide,
+                    ClothSystems::SyncOut,
+                )
+                    .run_if(simulation_running),
+            )
+            .add_systems(
+                self.schedule,
+                count_requested_step.in_set(ClothSystems::Last),
+            )
             .add_systems(
                 self.schedule,
                 (
@@ -68,6 +83,40 @@ impl Plugin for ClothCorePlugin {
                 )
                     .run_if(any_with_component::<Cloth>),
             );
+    }
+}
+
+/// Pauses and single-steps every cloth (the assignment's space and `h`
+/// keys). While paused, the cloth sets of [`ClothSystems`] do not run, except
+/// for steps requested with [`step_once`](Self::step_once).
+#[derive(Resource, Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct ClothSimulation {
+    /// True while paused.
+    pub paused: bool,
+    requested: u32,
+}
+
+impl ClothSimulation {
+    /// Runs one step while paused (no effect while running).
+    pub fn step_once(&mut self) {
+        if self.paused {
+            self.requested += 1;
+        }
+    }
+
+    /// Steps still requested.
+    pub fn requested_steps(&self) -> u32 {
+        self.requested
+    }
+}
+
+fn simulation_running(simulation: Res<ClothSimulation>) -> bool {
+    !simulation.paused || simulation.requested > 0
+}
+
+fn count_requested_step(mut simulation: ResMut<ClothSimulation>) {
+    if simulation.paused && simulation.requested > 0 {
+        simulation.requested -= 1;
     }
 }
 

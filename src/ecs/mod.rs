@@ -22,7 +22,7 @@ pub use assignment::{
 };
 pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
 pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};
-pub use core::ClothCorePlugin;
+pub use core::{ClothCorePlugin, ClothSimulation};
 pub use implicit::{Chebyshev, ImplicitPlugin, ImplicitSolver};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
 pub use pbd::{PbdPlugin, PbdSolver};

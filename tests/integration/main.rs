@@ -3,5 +3,7 @@
 
 mod assignment;
 mod common;
+#[cfg(feature = "render")]
+mod drag;
 mod plugin;
 mod scenes;

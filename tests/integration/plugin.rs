@@ -71,17 +71,18 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     ));
     run_steps(&mut app, 50);
     // Registered: the core and PBD only. Scheduled: place/pin, guard, the
-    // PBD step and the test's step counter; nothing else.
+    // pause bookkeeping, the PBD step and the test's step counter; nothing
+    // else.
     let methods: Vec<_> = app.world().resource::<ClothMethods>().names().collect();
     assert_eq!(methods, ["pbd"]);
     assert!(app.is_plugin_added::<ClothCorePlugin>());
     assert!(!app.is_plugin_added::<ImplicitPlugin>());
     assert!(!app.is_plugin_added::<SphereCollisionPlugin>());
-    assert_eq!(fixed_system_count(&mut app), 4);
+    assert_eq!(fixed_system_count(&mut app), 5);
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
-    // Core (2) + four methods + sphere gathering and projection + counter.
-    assert_eq!(fixed_system_count(&mut full), 9);
+    // Core (3) + four methods + sphere gathering and projection + counter.
+    assert_eq!(fixed_system_count(&mut full), 10);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
@@ -297,4 +298,24 @@ fn the_cloth_systems_have_no_ambiguities() {
         .spawn((SphereCollider::new(2.7), Transform::default()));
     // Building the schedule with ambiguities reported as errors panics if any.
     run_steps(&mut app, 2);
+}
+
+#[test]
+fn pausing_stops_every_cloth_and_single_steps_run_one_step() {
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    run_steps(&mut app, 3);
+    app.world_mut().resource_mut::<ClothSimulation>().paused = true;
+    run_steps(&mut app, 5);
+    assert_eq!(stats(&app, cloth).steps, 3);
+    let frozen = positions(&app, cloth);
+    app.world_mut()
+        .resource_mut::<ClothSimulation>()
+        .step_once();
+    run_steps(&mut app, 4);
+    assert_eq!(stats(&app, cloth).steps, 4);
+    assert_ne!(positions(&app, cloth), frozen);
+    app.world_mut().resource_mut::<ClothSimulation>().paused = false;
+    run_steps(&mut app, 2);
+    assert_eq!(stats(&app, cloth).steps, 6);
 }

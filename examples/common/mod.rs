@@ -1,0 +1,199 @@
+//! Shared by the windowed examples: command-line options, the scene's
+//! light, ground and camera, and the screenshot mode.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy::window::WindowResolution;
+use bevy_cloth::prelude::*;
+use bevy_cloth::render::Dragging;
+use bevy_panorbit_camera::PanOrbitCamera;
+
+/// A method named on the command line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    Jacobi,
+    Chebyshev,
+    Pbd,
+    Symplectic,
+    LinearCg,
+    LinearDirect,
+}
+
+impl Method {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Ok(match s {
+            "implicit" | "jacobi" => Self::Jacobi,
+            "chebyshev" => Self::Chebyshev,
+            "pbd" => Self::Pbd,
+            "symplectic" => Self::Symplectic,
+            "linear-cg" => Self::LinearCg,
+            "linear-direct" => Self::LinearDirect,
+            _ => {
+                return Err(format!(
+                    "unknown method '{s}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct)"
+                ));
+            }
+        })
+    }
+
+    /// Inserts this method's component.
+    pub fn insert(self, entity: &mut EntityCommands) {
+        match self {
+            Self::Jacobi => entity.insert(ImplicitSolver::jacobi(32)),
+            Self::Chebyshev => entity.insert(ImplicitSolver::chebyshev(32, 0.995)),
+            Self::Pbd => entity.insert(PbdSolver::default()),
+            Self::Symplectic => entity.insert(SymplecticSolver),
+            Self::LinearCg => entity.insert(
+                LinearImplicitSolver::cg(CgConfig::default())
+                    .with_springs(SpringJacobian::ClampCompression),
+            ),
+            Self::LinearDirect => entity.insert(
+                LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
+            ),
+        };
+    }
+}
+
+/// Screenshot mode: render `frames` frames, save a PNG, exit.
+#[derive(Resource, Debug, Clone)]
+pub struct ScreenshotMode {
+    pub path: PathBuf,
+    pub frames: u32,
+}
+
+/// Parses `--screenshot FILE --frames N` out of `args`, leaving the rest.
+pub fn screenshot_option(args: &mut Vec<String>) -> Result<Option<ScreenshotMode>, String> {
+    let mut path = None;
+    let mut frames = 120;
+    let mut rest = Vec::new();
+    let mut it = std::mem::take(args).into_iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--screenshot" => path = Some(it.next().ok_or("--screenshot needs a file")?),
+            "--frames" => {
+                let v = it.next().ok_or("--frames needs a number")?;
+                frames = v
+                    .parse()
+                    .map_err(|_| format!("--frames: cannot parse '{v}'"))?;
+            }
+            _ => rest.push(a),
+        }
+    }
+    *args = rest;
+    Ok(path.map(|p| ScreenshotMode {
+        path: p.into(),
+        frames,
+    }))
+}
+
+/// The window and default plugins.
+pub fn default_plugins(title: &str) -> bevy::app::PluginGroupBuilder {
+    DefaultPlugins.set(WindowPlugin {
+        primary_window: Some(Window {
+            title: title.into(),
+            resolution: WindowResolution::new(1280, 720),
+            ..default()
+        }),
+        ..default()
+    })
+}
+
+/// A sun with shadows, soft ambient light, and a ground plane at `ground_y`.
+pub fn light_and_ground(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<StandardMaterial>,
+    ground_y: f32,
+    size: f32,
+) {
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 8000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(size * 0.4, size, size * 0.6).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    commands.insert_resource(GlobalAmbientLight {
+        brightness: 600.0,
+        ..default()
+    });
+    commands.spawn((
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(size, size))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::srgb(0.32, 0.36, 0.40),
+            perceptual_roughness: 0.95,
+            ..default()
+        })),
+        Transform::from_xyz(0.0, ground_y, 0.0),
+        bevy::picking::Pickable::IGNORE,
+    ));
+}
+
+/// An orbit camera (drag: orbit, right-drag: pan, wheel: zoom).
+pub fn orbit_camera(commands: &mut Commands, focus: Vec3, radius: f32) {
+    commands.spawn((
+        Camera3d::default(),
+        Transform::from_translation(focus + Vec3::new(radius * 0.6, radius * 0.35, radius * 0.75))
+            .looking_at(focus, Vec3::Y),
+        PanOrbitCamera {
+            focus,
+            radius: Some(radius),
+            ..default()
+        },
+    ));
+}
+
+/// The camera does not orbit while an entity is dragged.
+pub fn hold_camera_while_dragging(
+    dragging: Res<Dragging>,
+    mut cameras: Query<&mut PanOrbitCamera>,
+) {
+    for mut camera in &mut cameras {
+        let enabled = dragging.entity.is_none();
+        if camera.enabled != enabled {
+            camera.enabled = enabled;
+        }
+    }
+}
+
+/// Frame counting, the screenshot and the exit of screenshot mode.
+pub fn screenshot_and_exit(
+    mode: Res<ScreenshotMode>,
+    time: Res<Time<Real>>,
+    mut frame: Local<u32>,
+    mut started: Local<Option<Duration>>,
+    mut commands: Commands,
+    mut exit: MessageWriter<AppExit>,
+) {
+    *frame += 1;
+    if *frame == 10 {
+        *started = Some(time.elapsed());
+    }
+    if *frame == mode.frames {
+        let _ = std::fs::remove_file(&mode.path);
+        commands
+            .spawn(Screenshot::primary_window())
+            .observe(save_to_disk(mode.path.clone()));
+        if let Some(start) = *started {
+            let frames = mode.frames - 10;
+            let per_frame = (time.elapsed() - start).as_secs_f64() * 1000.0 / f64::from(frames);
+            println!("frames={} mean_frame_ms={per_frame:.1}", mode.frames);
+        }
+    }
+    if *frame > mode.frames {
+        if mode.path.exists() && std::fs::metadata(&mode.path).is_ok_and(|m| m.len() > 0) {
+            // Give the writer a frame to finish the file.
+            if *frame > mode.frames + 5 {
+                println!("screenshot saved to {}", mode.path.display());
+                exit.write(AppExit::Success);
+            }
+        } else if *frame > mode.frames + 600 {
+            eprintln!("the screenshot was never written");
+            exit.write(AppExit::error());
+        }
+    }
+}

@@ -1,0 +1,151 @@
+//! The Unity cloth lab as a Bevy scene: the 21×21 cloth pinned at two
+//! corners, the sphere of radius 2.7, an orbit camera, the sphere picked and
+//! dragged with the mouse, and a panel to switch methods and tune them live.
+//!
+//! ```text
+//! cargo run --example lab -- [--method M] [--n 21] [--screenshot out.png --frames 120]
+//! ```
+//!
+//! Mouse: drag empty space to orbit, right-drag to pan, wheel to zoom; press
+//! on the sphere and drag to move it. Keys: space pauses, `h` steps once, `r`
+//! resets. `--screenshot` renders that many frames, saves a PNG and exits.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::process::ExitCode;
+
+use bevy::picking::Pickable;
+use bevy::picking::mesh_picking::MeshPickingPlugin;
+use bevy::prelude::*;
+use bevy_cloth::prelude::*;
+use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, Draggable, checker_image, cloth_mesh};
+use bevy_cloth::ui::{ClothInspectorPlugin, ClothResolution};
+use bevy_panorbit_camera::PanOrbitCameraPlugin;
+use common::{Method, ScreenshotMode};
+
+const USAGE: &str = "usage: lab [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct] \
+[--n N] [--screenshot FILE.png --frames N]";
+
+#[derive(Resource, Clone, Copy)]
+struct LabOptions {
+    method: Method,
+    n: u32,
+}
+
+fn parse(mut args: Vec<String>) -> Result<(LabOptions, Option<ScreenshotMode>), String> {
+    let screenshot = common::screenshot_option(&mut args)?;
+    let mut options = LabOptions {
+        method: Method::Chebyshev,
+        n: 21,
+    };
+    let mut it = args.into_iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--method" => {
+                options.method = Method::parse(&it.next().ok_or("--method needs a name")?)?
+            }
+            "--n" => {
+                let v = it.next().ok_or("--n needs a number")?;
+                options.n = v.parse().map_err(|_| format!("--n: cannot parse '{v}'"))?;
+                if !(2..=201).contains(&options.n) {
+                    return Err(format!("--n must lie in 2..=201, got {}", options.n));
+                }
+            }
+            "-h" | "--help" => return Err(String::new()),
+            other => return Err(format!("unknown argument '{other}'")),
+        }
+    }
+    Ok((options, screenshot))
+}
+
+/// The lab's cloth at resolution `n`: 10×10 units, pinned at 0 and n − 1.
+fn lab_cloth(n: u32) -> Result<ClothModel, ClothBuildError> {
+    ClothBuilder::lab_grid(n as usize)
+        .with_pins([0, n - 1])
+        .build()
+}
+
+fn main() -> ExitCode {
+    let (options, screenshot) = match parse(std::env::args().skip(1).collect()) {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            if !e.is_empty() {
+                eprintln!("error: {e}");
+            }
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut app = App::new();
+    app.add_plugins(common::default_plugins("bevy_cloth — lab"))
+        .add_plugins((
+            MeshPickingPlugin,
+            PanOrbitCameraPlugin,
+            ClothPlugins::default(),
+            ClothRenderPlugin,
+            DragPlugin,
+            ClothInspectorPlugin::default(),
+        ))
+        .insert_resource(Time::<Fixed>::from_seconds(0.0333))
+        .insert_resource(options)
+        .add_systems(Startup, setup)
+        .add_systems(Update, common::hold_camera_while_dragging);
+    if let Some(mode) = screenshot {
+        app.insert_resource(mode)
+            .add_systems(Update, common::screenshot_and_exit);
+    }
+    match app.run() {
+        AppExit::Success => ExitCode::SUCCESS,
+        AppExit::Error(code) => ExitCode::from(code.get()),
+    }
+}
+
+fn setup(
+    mut commands: Commands,
+    options: Res<LabOptions>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut images: ResMut<Assets<Image>>,
+) -> Result {
+    let model = lab_cloth(options.n)?;
+    let cloth_material = materials.add(StandardMaterial {
+        base_color_texture: Some(images.add(checker_image(
+            10,
+            Color::srgb(0.85, 0.25, 0.2),
+            Color::srgb(0.95, 0.9, 0.8),
+        ))),
+        double_sided: true,
+        cull_mode: None,
+        perceptual_roughness: 0.8,
+        ..default()
+    });
+    let mut cloth = commands.spawn((
+        Mesh3d(meshes.add(cloth_mesh(&model))),
+        MeshMaterial3d(cloth_material),
+        Cloth::new(model),
+        Transform::default(),
+        ClothResolution {
+            n: options.n,
+            range: (5, 101),
+            build: lab_cloth,
+        },
+        // Clicks go through the cloth to the sphere behind it.
+        Pickable::IGNORE,
+    ));
+    options.method.insert(&mut cloth);
+    commands.spawn((
+        Mesh3d(meshes.add(Sphere::new(2.7).mesh().ico(5)?)),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::srgb(0.25, 0.45, 0.85),
+            perceptual_roughness: 0.4,
+            ..default()
+        })),
+        Transform::from_xyz(0.0, -4.0, 4.0),
+        SphereCollider::new(2.7),
+        Draggable,
+    ));
+    common::light_and_ground(&mut commands, &mut meshes, &mut materials, -12.5, 60.0);
+    common::orbit_camera(&mut commands, Vec3::new(0.0, -5.0, 3.0), 22.0);
+    Ok(())
+}

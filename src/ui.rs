@@ -1,0 +1,541 @@
+//! An inspector panel (cargo feature `egui`): switch each cloth's method and
+//! tune it live, watch its statistics, pause, single-step and reset.
+//!
+//! Add [`ClothInspectorPlugin`] to any app with cloths; it adds
+//! `bevy_egui`'s `EguiPlugin` if missing. Keyboard shortcuts (on by
+//! default): space pauses and resumes, `h` runs one step (pausing first),
+//! `r` resets every cloth. A cloth that carries a [`ClothResolution`] gets a
+//! resolution slider that rebuilds it.
+
+use std::collections::VecDeque;
+
+use bevy::prelude::*;
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+
+use crate::ecs::{
+    Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ImplicitSolver,
+    LinearImplicitSolver, PbdSolver, SphereCollider, SphereResponse, SymplecticSolver,
+};
+use crate::model::{ClothBuildError, ClothModel};
+use crate::solver::linear::{
+    CgConfig, LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian,
+};
+
+/// The inspector panel and its keyboard shortcuts.
+#[derive(Debug, Clone, Copy)]
+pub struct ClothInspectorPlugin {
+    /// Space / `h` / `r` shortcuts.
+    pub keyboard: bool,
+}
+
+impl Default for ClothInspectorPlugin {
+    fn default() -> Self {
+        Self { keyboard: true }
+    }
+}
+
+impl Plugin for ClothInspectorPlugin {
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<EguiPlugin>() {
+            app.add_plugins(EguiPlugin::default());
+        }
+        app.init_resource::<Inspector>()
+            .init_resource::<ClothSimulation>()
+            .add_systems(Update, record_history)
+            .add_systems(EguiPrimaryContextPass, inspector_panel);
+        if self.keyboard {
+            app.add_systems(Update, keyboard_shortcuts);
+        }
+    }
+}
+
+/// How to rebuild a cloth at another resolution, for the panel's slider.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ClothResolution {
+    /// Current resolution (vertices along a side).
+    pub n: u32,
+    /// Slider range.
+    pub range: (u32, u32),
+    /// Builds the model at a resolution.
+    pub build: fn(u32) -> Result<ClothModel, ClothBuildError>,
+}
+
+/// Panel state: the selected cloth and its step-time history.
+#[derive(Resource, Debug, Default)]
+pub struct Inspector {
+    /// The cloth shown.
+    pub selected: Option<Entity>,
+    /// Recent step times of the selected cloth, in microseconds.
+    pub history: VecDeque<f32>,
+    last_step: u64,
+}
+
+const HISTORY: usize = 240;
+
+fn record_history(mut inspector: ResMut<Inspector>, stats: Query<(Entity, &ClothStats)>) {
+    if inspector.selected.is_none_or(|e| !stats.contains(e)) {
+        inspector.selected = stats.iter().map(|(e, _)| e).min();
+        inspector.history.clear();
+    }
+    let Some((_, s)) = inspector.selected.and_then(|e| stats.get(e).ok()) else {
+        return;
+    };
+    if s.steps != inspector.last_step {
+        inspector.last_step = s.steps;
+        inspector.history.push_back(s.step_time.as_secs_f32() * 1e6);
+        if inspector.history.len() > HISTORY {
+            inspector.history.pop_front();
+        }
+    }
+}
+
+fn keyboard_shortcuts(
+    keys: Res<ButtonInput<KeyCode>>,
+    mut simulation: ResMut<ClothSimulation>,
+    mut cloths: Query<(&mut Cloth, &mut ClothStats)>,
+) {
+    if keys.just_pressed(KeyCode::Space) {
+        simulation.paused = !simulation.paused;
+    }
+    if keys.just_pressed(KeyCode::KeyH) {
+        simulation.paused = true;
+        simulation.step_once();
+    }
+    if keys.just_pressed(KeyCode::KeyR) {
+        for (mut cloth, mut stats) in &mut cloths {
+            cloth.reset();
+            stats.resume();
+        }
+    }
+}
+
+/// The methods the panel offers, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Method {
+    Jacobi,
+    Chebyshev,
+    Pbd,
+    Symplectic,
+    LinearCg,
+    LinearDirect,
+}
+
+impl Method {
+    const ALL: [Method; 6] = [
+        Method::Jacobi,
+        Method::Chebyshev,
+        Method::Pbd,
+        Method::Symplectic,
+        Method::LinearCg,
+        Method::LinearDirect,
+    ];
+
+    fn label(self) -> &'static str {
+        match self {
+            Method::Jacobi => "Implicit (Jacobi)",
+            Method::Chebyshev => "Implicit (Chebyshev)",
+            Method::Pbd => "PBD (strain limiting)",
+            Method::Symplectic => "Symplectic Euler",
+            Method::LinearCg => "Linearly implicit (CG)",
+            Method::LinearDirect => "Linearly implicit (direct)",
+        }
+    }
+
+    /// The [`ClothMethod::KIND`](crate::ecs::ClothMethod::KIND) whose plugin
+    /// steps this method.
+    fn kind(self) -> &'static str {
+        match self {
+            Method::Jacobi | Method::Chebyshev => "implicit",
+            Method::Pbd => "pbd",
+            Method::Symplectic => "symplectic",
+            Method::LinearCg | Method::LinearDirect => "linear-implicit",
+        }
+    }
+}
+
+type MethodQuery<'a> = (
+    Option<Mut<'a, ImplicitSolver>>,
+    Option<Mut<'a, PbdSolver>>,
+    Option<&'a SymplecticSolver>,
+    Option<Mut<'a, LinearImplicitSolver>>,
+);
+
+type ClothItem = (
+    Entity,
+    &'static mut Cloth,
+    &'static mut ClothParams,
+    &'static mut ClothStats,
+    Option<&'static mut ImplicitSolver>,
+    Option<&'static mut PbdSolver>,
+    Option<&'static SymplecticSolver>,
+    Option<&'static mut LinearImplicitSolver>,
+    Option<&'static mut ClothResolution>,
+    Option<&'static Mesh3d>,
+);
+
+#[allow(clippy::too_many_arguments)]
+fn inspector_panel(
+    mut contexts: EguiContexts,
+    mut inspector: ResMut<Inspector>,
+    mut simulation: ResMut<ClothSimulation>,
+    mut fixed: ResMut<Time<Fixed>>,
+    methods: Res<ClothMethods>,
+    mut cloths: Query<ClothItem>,
+    mut colliders: Query<(Entity, &mut SphereCollider)>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut commands: Commands,
+) -> Result {
+    let ctx = contexts.ctx_mut()?;
+    let available: Vec<&str> = methods.names().collect();
+    egui::Window::new("bevy_cloth")
+        .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
+        .default_width(300.0)
+        .default_height(ctx.content_rect().height() - 24.0)
+        .resizable(true)
+        .show(ctx, |ui| {
+            egui::ScrollArea::vertical()
+                .auto_shrink([false, false])
+                .show(ui, |ui| {
+                    ui.heading("Cloth");
+                    // Simulation controls.
+                    ui.horizontal(|ui| {
+                        let label = if simulation.paused {
+                            "▶ Resume"
+                        } else {
+                            "⏸ Pause"
+                        };
+                        if ui.button(label).clicked() {
+                            simulation.paused = !simulation.paused;
+                        }
+                        if ui.button("Step").clicked() {
+                            simulation.paused = true;
+                            simulation.step_once();
+                        }
+                        if ui.button("Reset").clicked() {
+                            for (_, mut cloth, _, mut stats, ..) in &mut cloths {
+                                cloth.reset();
+                                stats.resume();
+                            }
+                        }
+                    });
+                    ui.label("space: pause · h: step · r: reset");
+                    let mut dt = fixed.timestep().as_secs_f64() * 1000.0;
+                    if ui
+                        .add(
+                            egui::Slider::new(&mut dt, 0.5..=50.0)
+                                .text("time step (ms)")
+                                .logarithmic(true),
+                        )
+                        .changed()
+                    {
+                        fixed.set_timestep_seconds(dt / 1000.0);
+                    }
+                    // Cloth selection.
+                    let entities: Vec<Entity> = cloths.iter().map(|c| c.0).collect();
+                    if entities.len() > 1 {
+                        let selected = inspector.selected;
+                        egui::ComboBox::from_label("cloth")
+                            .selected_text(selected.map_or("-".into(), |e| format!("{e}")))
+                            .show_ui(ui, |ui| {
+                                for e in &entities {
+                                    ui.selectable_value(
+                                        &mut inspector.selected,
+                                        Some(*e),
+                                        format!("{e}"),
+                                    );
+                                }
+                            });
+                    }
+                    let Some(selected) = inspector.selected else {
+                        ui.label("No cloth.");
+                        return;
+                    };
+                    let Ok((
+                        entity,
+                        mut cloth,
+                        mut params,
+                        mut stats,
+                        implicit,
+                        pbd,
+                        symplectic,
+                        linear,
+                        resolution,
+                        mesh,
+                    )) = cloths.get_mut(selected)
+                    else {
+                        return;
+                    };
+                    ui.separator();
+                    method_ui(
+                        ui,
+                        &available,
+                        &mut commands,
+                        entity,
+                        (implicit, pbd, symplectic, linear),
+                    );
+                    ui.separator();
+                    params_ui(ui, &mut params);
+                    if let Some(mut resolution) = resolution {
+                        let mut n = resolution.n;
+                        let (lo, hi) = resolution.range;
+                        if ui
+                            .add(egui::Slider::new(&mut n, lo..=hi).text("resolution"))
+                            .drag_stopped()
+                            || (n != resolution.n && !ui.ctx().egui_is_using_pointer())
+                        {
+                            match (resolution.build)(n) {
+                                Ok(model) => {
+                                    if let Some(mesh) = mesh {
+                                        let _ = meshes
+                                            .insert(&mesh.0, crate::render::cloth_mesh(&model));
+                                    }
+                                    *cloth = Cloth::new(model);
+                                    stats.resume();
+                                    resolution.n = n;
+                                }
+                                Err(e) => warn!("cannot rebuild the cloth at {n}: {e}"),
+                            }
+                        }
+                    }
+                    ui.separator();
+                    stats_ui(ui, &stats, &inspector.history);
+                    ui.separator();
+                    colliders_ui(ui, &mut colliders);
+                });
+        });
+    Ok(())
+}
+
+fn method_ui(
+    ui: &mut egui::Ui,
+    available: &[&str],
+    commands: &mut Commands,
+    entity: Entity,
+    (implicit, pbd, symplectic, linear): MethodQuery<'_>,
+) {
+    let current = match (&implicit, &pbd, &symplectic, &linear) {
+        (Some(i), ..) if i.chebyshev.is_some() => Some(Method::Chebyshev),
+        (Some(_), ..) => Some(Method::Jacobi),
+        (_, Some(_), ..) => Some(Method::Pbd),
+        (_, _, Some(_), _) => Some(Method::Symplectic),
+        (.., Some(l)) if l.solver == LinearSolver::Direct => Some(Method::LinearDirect),
+        (.., Some(_)) => Some(Method::LinearCg),
+        _ => None,
+    };
+    let mut chosen = current;
+    egui::ComboBox::from_label("method")
+        .selected_text(current.map_or("none", Method::label))
+        .show_ui(ui, |ui| {
+            for m in Method::ALL {
+                ui.add_enabled_ui(available.contains(&m.kind()), |ui| {
+                    ui.selectable_value(&mut chosen, Some(m), m.label());
+                });
+            }
+        });
+    if chosen != current
+        && let Some(m) = chosen
+    {
+        let mut e = commands.entity(entity);
+        match m {
+            Method::Jacobi => e.insert(ImplicitSolver::jacobi(
+                implicit.map_or(32, |i| i.iterations),
+            )),
+            Method::Chebyshev => e.insert(ImplicitSolver::chebyshev(
+                implicit.map_or(32, |i| i.iterations),
+                0.995,
+            )),
+            Method::Pbd => e.insert(PbdSolver::default()),
+            Method::Symplectic => e.insert(SymplecticSolver),
+            Method::LinearCg => e.insert(
+                LinearImplicitSolver::cg(CgConfig::default())
+                    .with_springs(SpringJacobian::ClampCompression),
+            ),
+            Method::LinearDirect => e.insert(
+                LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
+            ),
+        };
+        return;
+    }
+    if let Some(mut i) = implicit {
+        ui.add(
+            egui::Slider::new(&mut i.iterations, 1..=512)
+                .text("iterations")
+                .logarithmic(true),
+        );
+        let mut on = i.chebyshev.is_some();
+        if ui.checkbox(&mut on, "Chebyshev acceleration").changed() {
+            i.chebyshev = on.then(Default::default);
+        }
+        if let Some(c) = &mut i.chebyshev {
+            ui.add(egui::Slider::new(&mut c.rho, 0.5..=0.9999).text("rho"));
+        }
+    }
+    if let Some(mut p) = pbd {
+        ui.add(
+            egui::Slider::new(&mut p.iterations, 1..=512)
+                .text("iterations")
+                .logarithmic(true),
+        );
+    }
+    if let Some(mut l) = linear {
+        if let LinearSolver::Cg(cg) = &mut l.solver {
+            ui.add(
+                egui::Slider::new(&mut cg.max_iterations, 1..=500)
+                    .text("CG iterations")
+                    .logarithmic(true),
+            );
+            let mut exponent = cg.tolerance.log10();
+            if ui
+                .add(egui::Slider::new(&mut exponent, -12.0..=-1.0).text("tolerance (log10)"))
+                .changed()
+            {
+                cg.tolerance = 10f64.powf(exponent);
+            }
+            let mut jacobi = cg.preconditioner == Preconditioner::Jacobi;
+            if ui.checkbox(&mut jacobi, "Jacobi preconditioner").changed() {
+                cg.preconditioner = if jacobi {
+                    Preconditioner::Jacobi
+                } else {
+                    Preconditioner::None
+                };
+            }
+        }
+        let mut clamp = l.springs == SpringJacobian::ClampCompression;
+        if ui
+            .checkbox(&mut clamp, "drop compressive spring stiffness")
+            .changed()
+        {
+            l.springs = if clamp {
+                SpringJacobian::ClampCompression
+            } else {
+                SpringJacobian::Exact
+            };
+        }
+        egui::ComboBox::from_label("penalty stiffness in A")
+            .selected_text(format!("{:?}", l.penalty))
+            .show_ui(ui, |ui| {
+                for p in [
+                    PenaltyJacobian::Normal,
+                    PenaltyJacobian::Isotropic,
+                    PenaltyJacobian::Exact,
+                ] {
+                    ui.selectable_value(&mut l.penalty, p, format!("{p:?}"));
+                }
+            });
+    }
+}
+
+fn params_ui(ui: &mut egui::Ui, params: &mut Mut<ClothParams>) {
+    let p = params.bypass_change_detection();
+    let before = *p;
+    ui.add(
+        egui::Slider::new(&mut p.stiffness.stretch, 1.0..=1e6)
+            .text("stretch k")
+            .logarithmic(true),
+    );
+    ui.add(
+        egui::Slider::new(&mut p.stiffness.shear, 1.0..=1e6)
+            .text("shear k")
+            .logarithmic(true),
+    );
+    ui.add(
+        egui::Slider::new(&mut p.stiffness.bend, 1.0..=1e6)
+            .text("bend k")
+            .logarithmic(true),
+    );
+    ui.add(egui::Slider::new(&mut p.damping, 0.9..=1.0).text("damping"));
+    ui.add(egui::Slider::new(&mut p.gravity.y, -30.0..=0.0).text("gravity y"));
+    ui.add(egui::Slider::new(&mut p.particle_radius, 0.0..=0.5).text("particle radius"));
+    if *p != before {
+        params.set_changed();
+    }
+}
+
+fn stats_ui(ui: &mut egui::Ui, stats: &ClothStats, history: &VecDeque<f32>) {
+    ui.label(format!("method: {}   steps: {}", stats.method, stats.steps));
+    ui.label(format!(
+        "step: {:.1} µs   iterations: {}",
+        stats.step_time.as_secs_f64() * 1e6,
+        stats.iterations
+    ));
+    ui.label(format!(
+        "residual: {}",
+        stats
+            .residual
+            .map_or("-".to_string(), |r| format!("{r:.3e}"))
+    ));
+    ui.label(format!(
+        "max stretch: {:.2} %   contacts: {}",
+        stats.max_stretch * 100.0,
+        stats.contacts
+    ));
+    ui.label(format!("energy: {:.3e}", stats.energy));
+    match &stats.status {
+        ClothStatus::Running => {}
+        other => {
+            ui.colored_label(egui::Color32::LIGHT_RED, format!("status: {other:?}"));
+        }
+    }
+    // Step-time history.
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(30));
+    let max = history.iter().copied().fold(1.0f32, f32::max);
+    if history.len() > 1 {
+        let points: Vec<egui::Pos2> = history
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                egui::pos2(
+                    rect.left() + rect.width() * i as f32 / (HISTORY - 1) as f32,
+                    rect.bottom() - rect.height() * t / max,
+                )
+            })
+            .collect();
+        painter.add(egui::Shape::line(
+            points,
+            egui::Stroke::new(1.5, egui::Color32::LIGHT_GREEN),
+        ));
+    }
+    painter.text(
+        rect.left_top() + egui::vec2(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        format!("step time, max {max:.0} µs"),
+        egui::FontId::proportional(11.0),
+        egui::Color32::GRAY,
+    );
+}
+
+fn colliders_ui(ui: &mut egui::Ui, colliders: &mut Query<(Entity, &mut SphereCollider)>) {
+    for (entity, mut collider) in colliders {
+        ui.label(format!("sphere {entity}"));
+        let c = collider.bypass_change_detection();
+        let before = *c;
+        ui.add(
+            egui::Slider::new(&mut c.radius, 0.01..=10.0)
+                .text("radius")
+                .logarithmic(true),
+        );
+        let mut penalty = matches!(c.response, SphereResponse::Penalty { .. });
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut penalty, false, "projection");
+            ui.radio_value(&mut penalty, true, "penalty");
+        });
+        c.response = match (penalty, c.response) {
+            (false, _) => SphereResponse::Projection,
+            (true, SphereResponse::Penalty { stiffness }) => SphereResponse::Penalty { stiffness },
+            (true, _) => SphereResponse::Penalty { stiffness: 1e3 },
+        };
+        if let SphereResponse::Penalty { stiffness } = &mut c.response {
+            ui.add(
+                egui::Slider::new(stiffness, 1.0..=1e6)
+                    .text("penalty stiffness")
+                    .logarithmic(true),
+            );
+        }
+        if *c != before {
+            collider.set_changed();
+        }
+    }
+}
