@@ -25,7 +25,13 @@
 //!
 //! | Feature | Description | Default feature |
 //! |---|---|---|
-//! | *(none yet)* | The library needs only Bevy's `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and `bevy_mesh` features, and `faer` (sparse linear algebra, without its rayon thread pool): no renderer or window is built. | — |
+//! | `render` | [`render`]: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame; `DragPlugin` drags entities with the mouse (Bevy picking). Turns on Bevy's windowing, rendering, PBR and picking features (X11 only: no system `-dev` packages). | Yes |
+//! | `egui` | [`ui`]: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | Yes |
+//! | `examples` | What the windowed examples need beyond the library (`bevy_panorbit_camera`). | Yes |
+//!
+//! With `default-features = false` the crate builds only the simulation: Bevy's
+//! `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and `bevy_mesh` features,
+//! and `faer` (sparse linear algebra, without its rayon thread pool).
 //!
 //! ## Add the Plugins
 //!
@@ -89,9 +95,15 @@
 //! builds it (0.5×0.5 at `y = 0.5`, row 0 fixed) and a test reproduces every
 //! printed entry to its four decimals.
 //!
+//! ## Rendering and UI (optional)
+//! - `render::ClothRenderPlugin`, `render::cloth_mesh`, `render::DragPlugin`
+//!   (feature `render`)
+//! - `ui::ClothInspectorPlugin` (feature `egui`)
+//!
 //! ## Scheduling
 //! - [`ClothPlugins::new`] takes the schedule (default `FixedUpdate`);
-//!   [`ClothSystems`] orders the step.
+//!   [`ClothSystems`] orders the step; [`ClothSimulation`] pauses and
+//!   single-steps every cloth.
 //!
 //! ## Architecture
 //!

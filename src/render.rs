@@ -133,10 +133,7 @@ fn fill_normals(
 type UnculledCloth = (With<Cloth>, With<Mesh3d>, Without<NoFrustumCulling>);
 
 /// Meshes deform beyond their initial bounds: do not cull them by it.
-fn no_culling_for_cloths(
-    mut commands: Commands,
-    cloths: Query<Entity, UnculledCloth>,
-) {
+fn no_culling_for_cloths(mut commands: Commands, cloths: Query<Entity, UnculledCloth>) {
     for entity in &cloths {
         commands.entity(entity).insert(NoFrustumCulling);
     }
