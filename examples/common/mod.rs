@@ -175,6 +175,9 @@ pub fn screenshot_and_exit(
     }
     if *frame == mode.frames {
         let _ = std::fs::remove_file(&mode.path);
+        if let Some(dir) = mode.path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            let _ = std::fs::create_dir_all(dir);
+        }
         commands
             .spawn(Screenshot::primary_window())
             .observe(save_to_disk(mode.path.clone()));
