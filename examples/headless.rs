@@ -9,7 +9,8 @@
 //! ```
 //!
 //! Methods: `implicit` (Jacobi), `chebyshev`, `pbd`, `symplectic`,
-//! `linear-cg`, `linear-direct`; every method runs on every scene.
+//! `linear-cg`, `linear-direct`, `exact` (Newton to a gradient tolerance);
+//! every method runs on every scene.
 //!
 //! - `lab` (default): the Unity lab's `n×n` cloth (10×10 units, mass 1 per
 //!   vertex, pinned at 0 and n−1), `k = 8000`, `dt = 0.0333`, damping 0.99.
@@ -36,7 +37,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
 
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
-[--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct] [--n N] [--rows R] \
+[--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct|exact] [--n N] [--rows R] \
 [--cols C] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
 [--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--clamp-compression] [--dump FILE.csv]";
 
@@ -54,6 +55,7 @@ enum Method {
     Symplectic,
     LinearCg,
     LinearDirect,
+    Exact,
 }
 
 impl Method {
@@ -65,6 +67,7 @@ impl Method {
             "symplectic" => Self::Symplectic,
             "linear-cg" => Self::LinearCg,
             "linear-direct" => Self::LinearDirect,
+            "exact" => Self::Exact,
             _ => return None,
         })
     }
@@ -137,7 +140,7 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
                 let m: String = parse(&flag, args.next())?;
                 o.method = Method::parse(&m).ok_or_else(|| {
                     format!(
-                        "unknown method '{m}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct)"
+                        "unknown method '{m}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct, exact)"
                     )
                 })?;
             }
@@ -264,6 +267,7 @@ fn run(o: &Options) -> Result<(), String> {
             .with_springs(springs),
         ),
         Method::LinearDirect => cloth.insert(LinearImplicitSolver::direct().with_springs(springs)),
+        Method::Exact => cloth.insert(ExactSolver::default()),
     };
     let cloth = cloth.id();
     if o.sphere {

@@ -72,6 +72,7 @@
 //! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
+//! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search | the reference | [`solver::exact`] |
 //!
 //! ## Collision
 //! - [`SphereCollider`] / [`SphereCollisionPlugin`] ([`collision`]):
@@ -144,6 +145,8 @@
 //!             symplectic:        v ← damping·v + h·M⁻¹f(x); x ← x + h·v
 //!             linear implicit:   fill A = M − h²K, b = M·damping·v + h·f (pattern reused)
 //!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
+//!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
+//!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
 //!             (penalty spheres act inside the step: forces, and stiffness in A)
 //! Collide:  for each cloth, each projection sphere: move vertices inside to the surface
 //! SyncOut:  for each cloth: non-finite or failed solve? restore last good, stop,
@@ -197,9 +200,9 @@ use bevy::prelude::FixedUpdate;
 pub use ecs::{
     Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods,
     ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
-    DivergenceReason, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver,
-    MethodPlugin, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
-    SymplecticPlugin, SymplecticSolver,
+    DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin, ImplicitSolver,
+    LinearImplicitPlugin, LinearImplicitSolver, MethodPlugin, PbdPlugin, PbdSolver, SphereCollider,
+    SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
 };
 
 /// Everything a game needs, in one import.
@@ -207,9 +210,9 @@ pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
         Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothSimulation, ClothStats,
-        ClothStatus, ClothSystems, DivergenceReason, ImplicitPlugin, ImplicitSolver,
-        LinearImplicitPlugin, LinearImplicitSolver, PbdPlugin, PbdSolver, SphereCollider,
-        SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
+        ClothStatus, ClothSystems, DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin,
+        ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, PbdPlugin, PbdSolver,
+        SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
     pub use crate::solver::linear::{
@@ -227,6 +230,7 @@ pub mod prelude {
 /// | [`PbdPlugin`] | Steps cloths with a [`PbdSolver`] (position-based, strain limiting). |
 /// | [`SymplecticPlugin`] | Steps cloths with a [`SymplecticSolver`] (symplectic Euler). |
 /// | [`LinearImplicitPlugin`] | Steps cloths with a [`LinearImplicitSolver`] (sparse CG or LDLᵀ). |
+/// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
@@ -259,6 +263,7 @@ impl PluginGroup for ClothPlugins {
             .add(PbdPlugin::new(self.schedule))
             .add(SymplecticPlugin::new(self.schedule))
             .add(LinearImplicitPlugin::new(self.schedule))
+            .add(ExactPlugin::new(self.schedule))
             .add(SphereCollisionPlugin::new(self.schedule))
     }
 }

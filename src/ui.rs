@@ -13,8 +13,9 @@ use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::ecs::{
-    Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ImplicitSolver,
-    LinearImplicitSolver, PbdSolver, SphereCollider, SphereResponse, SymplecticSolver,
+    Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ExactSolver,
+    ImplicitSolver, LinearImplicitSolver, PbdSolver, SphereCollider, SphereResponse,
+    SymplecticSolver,
 };
 use crate::model::{ClothBuildError, ClothModel};
 use crate::solver::linear::{
@@ -118,16 +119,18 @@ enum Method {
     Symplectic,
     LinearCg,
     LinearDirect,
+    Exact,
 }
 
 impl Method {
-    const ALL: [Method; 6] = [
+    const ALL: [Method; 7] = [
         Method::Jacobi,
         Method::Chebyshev,
         Method::Pbd,
         Method::Symplectic,
         Method::LinearCg,
         Method::LinearDirect,
+        Method::Exact,
     ];
 
     fn label(self) -> &'static str {
@@ -138,6 +141,7 @@ impl Method {
             Method::Symplectic => "Symplectic Euler",
             Method::LinearCg => "Linearly implicit (CG)",
             Method::LinearDirect => "Linearly implicit (direct)",
+            Method::Exact => "Exact implicit (Newton)",
         }
     }
 
@@ -149,6 +153,7 @@ impl Method {
             Method::Pbd => "pbd",
             Method::Symplectic => "symplectic",
             Method::LinearCg | Method::LinearDirect => "linear-implicit",
+            Method::Exact => "exact",
         }
     }
 }
@@ -158,6 +163,7 @@ type MethodQuery<'a> = (
     Option<Mut<'a, PbdSolver>>,
     Option<&'a SymplecticSolver>,
     Option<Mut<'a, LinearImplicitSolver>>,
+    Option<Mut<'a, ExactSolver>>,
 );
 
 type ClothItem = (
@@ -169,6 +175,7 @@ type ClothItem = (
     Option<&'static mut PbdSolver>,
     Option<&'static SymplecticSolver>,
     Option<&'static mut LinearImplicitSolver>,
+    Option<&'static mut ExactSolver>,
     Option<&'static mut ClothResolution>,
     Option<&'static Mesh3d>,
 );
@@ -259,6 +266,7 @@ fn inspector_panel(
                         pbd,
                         symplectic,
                         linear,
+                        exact,
                         resolution,
                         mesh,
                     )) = cloths.get_mut(selected)
@@ -271,7 +279,7 @@ fn inspector_panel(
                         &available,
                         &mut commands,
                         entity,
-                        (implicit, pbd, symplectic, linear),
+                        (implicit, pbd, symplectic, linear, exact),
                     );
                     ui.separator();
                     params_ui(ui, &mut params);
@@ -311,15 +319,16 @@ fn method_ui(
     available: &[&str],
     commands: &mut Commands,
     entity: Entity,
-    (implicit, pbd, symplectic, linear): MethodQuery<'_>,
+    (implicit, pbd, symplectic, linear, exact): MethodQuery<'_>,
 ) {
-    let current = match (&implicit, &pbd, &symplectic, &linear) {
+    let current = match (&implicit, &pbd, &symplectic, &linear, &exact) {
         (Some(i), ..) if i.chebyshev.is_some() => Some(Method::Chebyshev),
         (Some(_), ..) => Some(Method::Jacobi),
         (_, Some(_), ..) => Some(Method::Pbd),
-        (_, _, Some(_), _) => Some(Method::Symplectic),
-        (.., Some(l)) if l.solver == LinearSolver::Direct => Some(Method::LinearDirect),
-        (.., Some(_)) => Some(Method::LinearCg),
+        (_, _, Some(_), ..) => Some(Method::Symplectic),
+        (_, _, _, Some(l), _) if l.solver == LinearSolver::Direct => Some(Method::LinearDirect),
+        (_, _, _, Some(_), _) => Some(Method::LinearCg),
+        (.., Some(_)) => Some(Method::Exact),
         _ => None,
     };
     let mut chosen = current;
@@ -353,6 +362,7 @@ fn method_ui(
             Method::LinearDirect => e.insert(
                 LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
             ),
+            Method::Exact => e.insert(ExactSolver::default()),
         };
         return;
     }
@@ -376,6 +386,17 @@ fn method_ui(
                 .text("iterations")
                 .logarithmic(true),
         );
+    }
+    if let Some(mut x) = exact {
+        let mut exponent = x.tolerance.log10();
+        if ui
+            .add(egui::Slider::new(&mut exponent, -12.0..=-2.0).text("gradient tolerance (log10)"))
+            .changed()
+        {
+            x.tolerance = 10f64.powf(exponent);
+        }
+        ui.add(egui::Slider::new(&mut x.max_iterations, 1..=200).text("Newton iterations (max)"));
+        ui.checkbox(&mut x.projected_only, "projected Hessian only");
     }
     if let Some(mut l) = linear {
         if let LinearSolver::Cg(cg) = &mut l.solver {

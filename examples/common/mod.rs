@@ -20,6 +20,7 @@ pub enum Method {
     Symplectic,
     LinearCg,
     LinearDirect,
+    Exact,
 }
 
 impl Method {
@@ -31,9 +32,10 @@ impl Method {
             "symplectic" => Self::Symplectic,
             "linear-cg" => Self::LinearCg,
             "linear-direct" => Self::LinearDirect,
+            "exact" => Self::Exact,
             _ => {
                 return Err(format!(
-                    "unknown method '{s}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct)"
+                    "unknown method '{s}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct, exact)"
                 ));
             }
         })
@@ -53,6 +55,7 @@ impl Method {
             Self::LinearDirect => entity.insert(
                 LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
             ),
+            Self::Exact => entity.insert(ExactSolver::default()),
         };
     }
 }

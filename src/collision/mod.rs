@@ -11,7 +11,7 @@
 //!
 //! No friction. A vertex exactly at the centre is pushed along `+y`.
 
-use bevy::math::Vec3A;
+use bevy::math::{DVec3, Vec3A};
 
 use crate::model::{ClothModel, ClothState};
 
@@ -66,6 +66,43 @@ impl PenaltySphere {
         let depth = self.radius - distance;
         Some(PenaltyContact {
             force: normal * (self.stiffness * depth),
+            normal,
+            depth,
+            distance,
+        })
+    }
+}
+
+/// One vertex's penalty contact, in `f64` (for the assembled systems).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PenaltyContact64 {
+    /// The force `c_pen · d · n`.
+    pub force: DVec3,
+    /// Unit normal `n` from the centre to the vertex.
+    pub normal: DVec3,
+    /// Penetration depth `d > 0`.
+    pub depth: f64,
+    /// Distance `l` from the centre.
+    pub distance: f64,
+}
+
+impl PenaltySphere {
+    /// [`contact`](Self::contact) in `f64`.
+    pub fn contact_f64(&self, x: DVec3) -> Option<PenaltyContact64> {
+        let d = x - self.center.as_dvec3();
+        let distance = d.length();
+        let radius = f64::from(self.radius);
+        if distance >= radius {
+            return None;
+        }
+        let normal = if distance > 0.0 {
+            d / distance
+        } else {
+            DVec3::Y
+        };
+        let depth = radius - distance;
+        Some(PenaltyContact64 {
+            force: normal * (f64::from(self.stiffness) * depth),
             normal,
             depth,
             distance,

@@ -1,5 +1,6 @@
-//! The assignment's methods as components: symplectic Euler and linearly
-//! implicit Euler with sparse CG or direct solves.
+//! The assignment's methods as components — symplectic Euler and linearly
+//! implicit Euler with sparse CG or direct solves — and the exact
+//! implicit-Euler reference.
 
 use bevy::prelude::*;
 
@@ -9,6 +10,7 @@ use super::reflect::{
 };
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::exact::{self, ExactConfig, ExactWorkspace};
 use crate::solver::linear::{
     self, CgConfig, LinearConfig, LinearSolver, LinearWorkspace, PenaltyJacobian, SpringJacobian,
 };
@@ -137,3 +139,69 @@ pub type SymplecticPlugin = MethodPlugin<SymplecticSolver>;
 /// Adds linearly implicit Euler: cloths with a [`LinearImplicitSolver`] are
 /// stepped in [`ClothSystems::Step`](super::ClothSystems::Step).
 pub type LinearImplicitPlugin = MethodPlugin<LinearImplicitSolver>;
+
+/// Steps a cloth by exact implicit Euler: Newton's method with sparse
+/// Cholesky and a line search on the lab's objective, to a gradient
+/// tolerance. The reference the other methods are measured against; see
+/// [`solver::exact`](crate::solver::exact).
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct ExactSolver {
+    /// Relative gradient tolerance (default 1e-9).
+    pub tolerance: f64,
+    /// Newton iteration cap (default 100).
+    pub max_iterations: u32,
+    /// Use only the projected (always positive definite) Hessian.
+    pub projected_only: bool,
+}
+
+impl Default for ExactSolver {
+    fn default() -> Self {
+        let c = ExactConfig::default();
+        Self {
+            tolerance: c.tolerance,
+            max_iterations: c.max_iterations,
+            projected_only: c.projected_only,
+        }
+    }
+}
+
+impl ExactSolver {
+    /// The solver settings.
+    pub fn config(&self) -> ExactConfig {
+        ExactConfig {
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            projected_only: self.projected_only,
+            ..ExactConfig::default()
+        }
+    }
+}
+
+impl ClothMethod for ExactSolver {
+    const KIND: &'static str = "exact";
+    type Workspace = ExactWorkspace;
+
+    fn name(&self) -> &'static str {
+        "exact"
+    }
+
+    fn register_types(app: &mut App) {
+        app.register_type::<ExactSolver>();
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut ExactWorkspace,
+    ) -> Result<StepReport, StepError> {
+        exact::step(model, state, params, &self.config(), spheres, workspace)
+    }
+}
+
+/// Adds exact implicit Euler: cloths with an [`ExactSolver`] are stepped in
+/// [`ClothSystems::Step`](super::ClothSystems::Step).
+pub type ExactPlugin = MethodPlugin<ExactSolver>;

@@ -18,7 +18,8 @@ mod schedule;
 use bevy::prelude::*;
 
 pub use assignment::{
-    LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin, SymplecticSolver,
+    ExactPlugin, ExactSolver, LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin,
+    SymplecticSolver,
 };
 pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
 pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};

@@ -370,6 +370,24 @@ impl LinearSystem {
         }
     }
 
+    /// True if this system's pattern is `model`'s.
+    pub(crate) fn matches(&self, model: &ClothModel) -> bool {
+        self.key == pattern_key(model)
+    }
+
+    /// [`assemble`](Self::assemble) at `f64` positions.
+    pub(crate) fn assemble_at(
+        &mut self,
+        model: &ClothModel,
+        positions: &[DVec3],
+        velocities: &[Vec3A],
+        params: &StepParams,
+        config: &LinearConfig,
+        spheres: &[PenaltySphere],
+    ) {
+        self.assemble_impl(model, |i| positions[i], velocities, params, config, spheres);
+    }
+
     /// Fills `A = M − h²K` and `b = Mv + hf` at `positions` and
     /// `velocities` (no allocation). Velocities are used as given: damp them
     /// first.
@@ -377,6 +395,25 @@ impl LinearSystem {
         &mut self,
         model: &ClothModel,
         positions: &[Vec3A],
+        velocities: &[Vec3A],
+        params: &StepParams,
+        config: &LinearConfig,
+        spheres: &[PenaltySphere],
+    ) {
+        self.assemble_impl(
+            model,
+            |i| positions[i].as_dvec3(),
+            velocities,
+            params,
+            config,
+            spheres,
+        );
+    }
+
+    fn assemble_impl(
+        &mut self,
+        model: &ClothModel,
+        position: impl Fn(usize) -> DVec3,
         velocities: &[Vec3A],
         params: &StepParams,
         config: &LinearConfig,
@@ -398,20 +435,18 @@ impl LinearSystem {
             self.add_block(slot, &(DMat3::IDENTITY * m), 1.0);
             let v = velocities[i].as_dvec3();
             self.add_rhs(i, m * v + h * m * gravity);
-            let x = positions[i];
+            let x = position(i);
             for sphere in spheres {
-                if let Some(contact) = sphere.contact(x) {
+                if let Some(contact) = sphere.contact_f64(x) {
                     let c = f64::from(sphere.stiffness);
-                    let n = contact.normal.as_dvec3();
+                    let n = contact.normal;
                     let nn = DMat3::from_cols(n * n.x, n * n.y, n * n.z);
                     let lhs = match config.penalty {
                         PenaltyJacobian::Normal => nn * c,
-                        PenaltyJacobian::Isotropic => {
-                            DMat3::IDENTITY * (c * f64::from(contact.depth))
-                        }
+                        PenaltyJacobian::Isotropic => DMat3::IDENTITY * (c * contact.depth),
                         PenaltyJacobian::Exact => {
                             let tangential = if contact.distance > 0.0 {
-                                f64::from(contact.depth) / f64::from(contact.distance)
+                                contact.depth / contact.distance
                             } else {
                                 0.0
                             };
@@ -419,14 +454,14 @@ impl LinearSystem {
                         }
                     };
                     self.add_block(slot, &(lhs * h2), 1.0);
-                    self.add_rhs(i, h * contact.force.as_dvec3());
+                    self.add_rhs(i, h * contact.force);
                 }
             }
         }
         let stiffness = params.stiffness;
         for (e, s) in model.topology().springs().iter().enumerate() {
-            let x0 = positions[s.a as usize].as_dvec3();
-            let x1 = positions[s.b as usize].as_dvec3();
+            let x0 = position(s.a as usize);
+            let x1 = position(s.b as usize);
             let dx = x1 - x0;
             let l = dx.length();
             if l == 0.0 {
@@ -460,8 +495,7 @@ impl LinearSystem {
 #[derive(Default)]
 pub struct LinearWorkspace {
     system: Option<LinearSystem>,
-    symbolic: Option<SymbolicCholesky<usize>>,
-    factor: Vec<f64>,
+    cholesky: SparseCholesky,
     solution: Vec<f64>,
     scratch: Vec<f64>,
     inv_diag: Vec<f64>,
@@ -506,7 +540,7 @@ impl LinearWorkspace {
             self.scratch = vec![0.0; n];
             self.inv_diag = vec![0.0; n];
             self.system = Some(system);
-            self.symbolic = None;
+            self.cholesky.reset();
             self.memory = None;
             self.pattern_builds += 1;
         }
@@ -539,8 +573,7 @@ pub fn step(
     );
     let LinearWorkspace {
         system,
-        symbolic,
-        factor,
+        cholesky,
         solution,
         scratch,
         inv_diag,
@@ -563,9 +596,7 @@ pub fn step(
                 }
                 solve_cg(system, &cg, solution, inv_diag, memory)
             }
-            LinearSolver::Direct => {
-                solve_direct(system, symbolic, factor, solution, scratch, memory)
-            }
+            LinearSolver::Direct => solve_direct(system, cholesky, solution, scratch),
         }
     };
     let (iterations, residual) = result.map_err(StepError::Solve)?;
@@ -643,54 +674,12 @@ fn solve_cg(
 
 fn solve_direct(
     system: &LinearSystem,
-    symbolic: &mut Option<SymbolicCholesky<usize>>,
-    factor: &mut Vec<f64>,
+    cholesky: &mut SparseCholesky,
     solution: &mut [f64],
     scratch: &mut [f64],
-    memory: &mut Option<MemBuffer>,
 ) -> Result<(u32, f64), SolveError> {
-    let n = system.dimension();
-    let a = system.matrix();
-    if symbolic.is_none() {
-        let sym = factorize_symbolic_cholesky(
-            a.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|_| SolveError::Factorization)?;
-        factor.resize(sym.len_val(), 0.0);
-        *memory = Some(MemBuffer::new(StackReq::any_of(&[
-            sym.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
-            sym.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ])));
-        *symbolic = Some(sym);
-    }
-    let sym = symbolic.as_ref().expect("just built");
-    let memory = memory
-        .as_mut()
-        .expect("allocated with the symbolic factorisation");
-    let ldlt = sym
-        .factorize_numeric_ldlt(
-            factor,
-            a,
-            Side::Lower,
-            Default::default(),
-            Par::Seq,
-            MemStack::new(memory),
-            Default::default(),
-        )
-        .map_err(|_| SolveError::Factorization)?;
     solution.copy_from_slice(system.rhs());
-    ldlt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(solution, n, 1),
-        Par::Seq,
-        MemStack::new(memory),
-    );
-    if solution.iter().any(|v| !v.is_finite()) {
-        return Err(SolveError::Factorization);
-    }
+    cholesky.solve_ldlt(system.matrix(), solution)?;
     // Relative residual ‖b − Av‖/‖b‖.
     system.multiply(solution, scratch);
     let (mut r2, mut b2) = (0.0, 0.0);
@@ -708,6 +697,111 @@ fn solve_direct(
     ))
 }
 
-#[cfg(test)]
-#[path = "linear_tests.rs"]
-mod tests;
+/// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
+/// analysis is done once for a sparsity pattern and reused by every
+/// numeric factorisation.
+#[derive(Default)]
+pub(crate) struct SparseCholesky {
+    symbolic: Option<SymbolicCholesky<usize>>,
+    factor: Vec<f64>,
+    memory: Option<MemBuffer>,
+}
+
+impl SparseCholesky {
+    /// Forgets the symbolic analysis (the pattern changed).
+    pub(crate) fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    fn analyse(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<(), SolveError> {
+        if self.symbolic.is_none() {
+            let sym = factorize_symbolic_cholesky(
+                a.symbolic(),
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams::default(),
+            )
+            .map_err(|_| SolveError::Factorization)?;
+            self.factor.resize(sym.len_val(), 0.0);
+            self.memory = Some(MemBuffer::new(StackReq::any_of(&[
+                sym.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
+                sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+                sym.solve_in_place_scratch::<f64>(1, Par::Seq),
+            ])));
+            self.symbolic = Some(sym);
+        }
+        Ok(())
+    }
+
+    /// Solves `A x = rhs` in place by LDLᵀ (any symmetric `A` without a zero
+    /// pivot; like the assignment's `A.ldlt().solve(b)`).
+    pub(crate) fn solve_ldlt(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+        rhs: &mut [f64],
+    ) -> Result<(), SolveError> {
+        self.analyse(a)?;
+        let n = rhs.len();
+        let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
+            return Err(SolveError::Factorization);
+        };
+        let ldlt = sym
+            .factorize_numeric_ldlt(
+                &mut self.factor,
+                a,
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(memory),
+                Default::default(),
+            )
+            .map_err(|_| SolveError::Factorization)?;
+        ldlt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            Par::Seq,
+            MemStack::new(memory),
+        );
+        if rhs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(SolveError::Factorization)
+        }
+    }
+
+    /// Solves `A x = rhs` in place by LLᵀ; fails with
+    /// [`SolveError::NotPositiveDefinite`] when `A` is not positive definite.
+    pub(crate) fn solve_llt(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+        rhs: &mut [f64],
+    ) -> Result<(), SolveError> {
+        self.analyse(a)?;
+        let n = rhs.len();
+        let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
+            return Err(SolveError::Factorization);
+        };
+        let llt = sym
+            .factorize_numeric_llt(
+                &mut self.factor,
+                a,
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(memory),
+                Default::default(),
+            )
+            .map_err(|_| SolveError::NotPositiveDefinite)?;
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            Par::Seq,
+            MemStack::new(memory),
+        );
+        if rhs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(SolveError::Factorization)
+        }
+    }
+}

@@ -11,6 +11,7 @@
 //! | position-based dynamics, Jacobi strain limiting | [`pbd::step`] | part 2 |
 //! | symplectic Euler (`A = M`) | [`symplectic::step`] | the assignment's first stage |
 //! | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear::step`] | the assignment |
+//! | exact implicit Euler: Newton + sparse Cholesky + line search | [`exact::step`] | the reference |
 //!
 //! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
 //! inside every step: as forces with their stiffness in the linear system
@@ -20,6 +21,7 @@
 //! Shared measures — [`objective`], [`gradient`], [`max_stretch`],
 //! [`energy`] — are here.
 
+pub mod exact;
 pub mod implicit;
 pub mod linear;
 pub mod pbd;
@@ -291,6 +293,24 @@ pub fn energy(model: &ClothModel, state: &ClothState, params: &StepParams) -> f6
             - m * g.dot(state.positions[i].as_dvec3());
     }
     e + spring_energy(model, &state.positions, &params.stiffness)
+}
+
+/// The per-step error of a method against the exact step from the same
+/// state: `‖x_K − x*‖ / ‖x* − x_0‖`, with `x_K` the method's positions,
+/// `x*` the exact step's and `x_0` the positions before the step (norms over
+/// all vertices, in `f64`). 0 is exact; 1 means the method moved no closer
+/// to `x*` than staying put.
+pub fn step_error(method: &[Vec3A], exact: &[Vec3A], before: &[Vec3A]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((m, e), b) in method.iter().zip(exact).zip(before) {
+        num += (m.as_dvec3() - e.as_dvec3()).length_squared();
+        den += (e.as_dvec3() - b.as_dvec3()).length_squared();
+    }
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else {
+        num.sqrt()
+    }
 }
 
 /// Largest relative elongation `(l − L)/L` over all springs (0 at rest, 0.1

@@ -1,0 +1,377 @@
+//! Exact implicit Euler: Newton's method on the lab's objective, to a
+//! gradient tolerance — the reference every other method is measured
+//! against, and a method of its own for users who need accuracy.
+//!
+//! One step minimises, in `f64`,
+//!
+//! `Φ(x) = 1/(2dt²)‖x − x̃‖²_M + Σ_springs ½k(l − L)² − Σ m g·x (+ Σ_contacts ½c d²)`
+//!
+//! with `x̃ = x + dt·damping·v` (the lab's prediction), starting from
+//! `x = x̃`. Each Newton iteration assembles the Hessian
+//! `H = M/dt² + Σ k[nnᵀ + (1 − L/l)(I − nnᵀ)]` on the sparse pattern of
+//! [`linear`](super::linear) (it is `(M − h²K)/h²`), factorises it by sparse
+//! Cholesky (symbolic analysis once per pattern), solves `H d = −∇Φ`, and
+//! backtracks (Armijo, halving) along `d`. The **true** Hessian converges
+//! quadratically but is indefinite where springs are compressed; when its
+//! factorisation fails, that iteration uses the **projected** Hessian (each
+//! spring's `1 − L/l` clamped at 0, which is positive definite), which always
+//! works but converges only linearly. The iteration stops when
+//! `‖∇Φ‖ ≤ tolerance·‖∇Φ(x̃)‖` (default 1e-9), when the Newton step falls
+//! below round-off (the gradient of a cloth near rest can have a floor just
+//! above that tolerance in `f64`), or after `max_iterations`.
+//! Then `v = (x − x_old)/dt`.
+
+use bevy::math::{DVec3, Vec3A};
+
+use super::linear::{LinearConfig, LinearSystem, PenaltyJacobian, SparseCholesky, SpringJacobian};
+use super::{StepError, StepParams, StepReport, check_state};
+use crate::collision::PenaltySphere;
+use crate::model::{ClothModel, ClothState, ParamError};
+
+/// Settings of the exact solver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExactConfig {
+    /// Relative gradient tolerance `‖∇Φ‖/‖∇Φ(x̃)‖` (default 1e-9).
+    pub tolerance: f64,
+    /// Newton iteration cap (default 100).
+    pub max_iterations: u32,
+    /// Use the projected Hessian from the start (always positive definite,
+    /// linear convergence) instead of the true one.
+    pub projected_only: bool,
+    /// Where Newton starts: the lab's prediction `x̃` (default) or the
+    /// current positions. From the current positions, one full Newton step
+    /// with the true Hessian is exactly the linearly implicit Euler step.
+    pub start_at_current: bool,
+    /// Backtracking line search (default on); off takes full Newton steps.
+    pub line_search: bool,
+}
+
+impl Default for ExactConfig {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-9,
+            max_iterations: 100,
+            projected_only: false,
+            start_at_current: false,
+            line_search: true,
+        }
+    }
+}
+
+impl ExactConfig {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if self.max_iterations == 0 {
+            return Err(ParamError::Iterations);
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(ParamError::Tolerance(self.tolerance));
+        }
+        Ok(())
+    }
+}
+
+/// What the last exact step did, beyond its [`StepReport`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExactReport {
+    /// Newton iterations with the true Hessian.
+    pub true_hessian: u32,
+    /// Newton iterations that fell back to (or used only) the projected one.
+    pub projected_hessian: u32,
+    /// Final relative gradient norm.
+    pub relative_gradient: f64,
+    /// True if the tolerance was reached, or the Newton step fell below
+    /// round-off first.
+    pub converged: bool,
+    /// True if the iteration stopped because the Newton step fell below
+    /// round-off (`‖d‖∞ ≤ 1e-11·max|x|`, far below the `f32` state's
+    /// precision) before the gradient tolerance.
+    pub at_round_off: bool,
+}
+
+/// Scratch of the exact solver.
+#[derive(Default)]
+pub struct ExactWorkspace {
+    system: Option<LinearSystem>,
+    cholesky: SparseCholesky,
+    x: Vec<DVec3>,
+    x_tilde: Vec<DVec3>,
+    trial: Vec<DVec3>,
+    gradient: Vec<f64>,
+    direction: Vec<f64>,
+    zeros: Vec<Vec3A>,
+    last: ExactReport,
+}
+
+impl core::fmt::Debug for ExactWorkspace {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ExactWorkspace")
+            .field("last", &self.last)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ExactWorkspace {
+    /// What the last step did.
+    pub fn last_report(&self) -> ExactReport {
+        self.last
+    }
+}
+
+/// `Φ(x)` in `f64`.
+fn objective(
+    model: &ClothModel,
+    x: &[DVec3],
+    x_tilde: &[DVec3],
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+) -> f64 {
+    let inv_dt2 = 1.0 / (params.dt * params.dt);
+    let g = params.gravity.as_dvec3();
+    let mut e = 0.0;
+    for (i, &m) in model.masses().iter().enumerate() {
+        if model.pinned()[i] {
+            continue;
+        }
+        let m = f64::from(m);
+        e += 0.5 * m * inv_dt2 * (x[i] - x_tilde[i]).length_squared() - m * g.dot(x[i]);
+        for s in spheres {
+            let d = f64::from(s.radius) - (x[i] - s.center.as_dvec3()).length();
+            if d > 0.0 {
+                e += 0.5 * f64::from(s.stiffness) * d * d;
+            }
+        }
+    }
+    for s in model.topology().springs() {
+        let l = (x[s.a as usize] - x[s.b as usize]).length();
+        let stretch = l - f64::from(s.rest_length);
+        e += 0.5 * f64::from(params.stiffness.of(s.kind)) * stretch * stretch;
+    }
+    e
+}
+
+/// `∇Φ(x)` over the system's unknowns into `out`; returns its norm.
+fn gradient(
+    model: &ClothModel,
+    system: &LinearSystem,
+    x: &[DVec3],
+    x_tilde: &[DVec3],
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+    out: &mut [f64],
+) -> f64 {
+    out.fill(0.0);
+    let inv_dt2 = 1.0 / (params.dt * params.dt);
+    let g = params.gravity.as_dvec3();
+    let add = |i: usize, v: DVec3, out: &mut [f64]| {
+        if let Some(d) = system.dof(i) {
+            out[d] += v.x;
+            out[d + 1] += v.y;
+            out[d + 2] += v.z;
+        }
+    };
+    for (i, &m) in model.masses().iter().enumerate() {
+        let m = f64::from(m);
+        let mut v = (x[i] - x_tilde[i]) * (m * inv_dt2) - g * m;
+        for s in spheres {
+            let dx = x[i] - s.center.as_dvec3();
+            let l = dx.length();
+            let d = f64::from(s.radius) - l;
+            if d > 0.0 {
+                let n = if l > 0.0 { dx / l } else { DVec3::Y };
+                v -= n * (f64::from(s.stiffness) * d);
+            }
+        }
+        add(i, v, out);
+    }
+    for s in model.topology().springs() {
+        let (a, b) = (s.a as usize, s.b as usize);
+        let d = x[a] - x[b];
+        let l = d.length();
+        if l == 0.0 {
+            continue;
+        }
+        let t = d * (f64::from(params.stiffness.of(s.kind)) * (1.0 - f64::from(s.rest_length) / l));
+        add(a, t, out);
+        add(b, -t, out);
+    }
+    out.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// Advances `state` by one exact implicit-Euler step (see the module docs).
+/// The report's residual is the final relative gradient norm.
+pub fn step(
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    config: &ExactConfig,
+    spheres: &[PenaltySphere],
+    ws: &mut ExactWorkspace,
+) -> Result<StepReport, StepError> {
+    params.validate()?;
+    config.validate()?;
+    check_state(model, state)?;
+    let n = model.vertex_count();
+    if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
+        ws.system = Some(LinearSystem::new(model));
+        ws.cholesky.reset();
+    }
+    let system = ws.system.as_mut().expect("just built");
+    let dims = system.dimension();
+    ws.gradient.resize(dims, 0.0);
+    ws.direction.resize(dims, 0.0);
+    ws.zeros.resize(n, Vec3A::ZERO);
+    let dt = params.dt;
+    let pinned = model.pinned();
+    // The lab's prediction, in f64.
+    ws.x.clear();
+    ws.x_tilde.clear();
+    for (i, (x, v)) in state.positions.iter().zip(&state.velocities).enumerate() {
+        let x = x.as_dvec3();
+        let v = if pinned[i] {
+            DVec3::ZERO
+        } else {
+            v.as_dvec3() * f64::from(params.damping)
+        };
+        ws.x_tilde.push(x + dt * v);
+        ws.x.push(if config.start_at_current {
+            x
+        } else {
+            x + dt * v
+        });
+    }
+    // Pinned vertices stay where they are.
+    for &p in model.pins() {
+        ws.x[p as usize] = state.positions[p as usize].as_dvec3();
+        ws.x_tilde[p as usize] = ws.x[p as usize];
+    }
+    let mut report = ExactReport::default();
+    let g0 = gradient(
+        model,
+        system,
+        &ws.x,
+        &ws.x_tilde,
+        params,
+        spheres,
+        &mut ws.gradient,
+    );
+    let mut g_norm = g0;
+    let threshold = config.tolerance * g0;
+    let h2 = dt * dt;
+    let mut iterations = 0;
+    while g_norm > threshold && iterations < config.max_iterations {
+        iterations += 1;
+        // The Hessian, scaled by h²: (M − h²K) at x.
+        let mut solved = false;
+        for projected in [config.projected_only, true] {
+            let hessian = LinearConfig {
+                springs: if projected {
+                    SpringJacobian::ClampCompression
+                } else {
+                    SpringJacobian::Exact
+                },
+                penalty: if projected {
+                    PenaltyJacobian::Normal
+                } else {
+                    PenaltyJacobian::Exact
+                },
+                ..LinearConfig::default()
+            };
+            system.assemble_at(model, &ws.x, &ws.zeros, params, &hessian, spheres);
+            for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
+                *d = -h2 * g;
+            }
+            if ws
+                .cholesky
+                .solve_llt(system.matrix(), &mut ws.direction)
+                .is_ok()
+            {
+                if projected {
+                    report.projected_hessian += 1;
+                } else {
+                    report.true_hessian += 1;
+                }
+                solved = true;
+                break;
+            }
+        }
+        if !solved {
+            break;
+        }
+        // A Newton step below round-off: the gradient cannot get smaller in
+        // f64 (its floor is ~1e-16 of the spring forces); stop, converged.
+        let step_size = ws.direction.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let scale =
+            ws.x.iter()
+                .fold(1.0f64, |m, x| m.max(x.abs().max_element()));
+        if step_size <= 1e-11 * scale {
+            report.at_round_off = true;
+            break;
+        }
+        // Backtracking (Armijo) line search along the Newton direction.
+        let phi = objective(model, &ws.x, &ws.x_tilde, params, spheres);
+        let slope: f64 = ws
+            .gradient
+            .iter()
+            .zip(&ws.direction)
+            .map(|(g, d)| g * d)
+            .sum();
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        // Where the predicted decrease is below Φ's round-off, Armijo's test
+        // only sees noise: take the full (quadratically convergent) step.
+        let line_search = config.line_search && -slope > 1e-13 * (1.0 + phi.abs());
+        for _ in 0..40 {
+            ws.trial.clone_from(&ws.x);
+            for i in 0..n {
+                if let Some(d) = system.dof(i) {
+                    ws.trial[i] += alpha
+                        * DVec3::new(ws.direction[d], ws.direction[d + 1], ws.direction[d + 2]);
+                }
+            }
+            if !line_search
+                || objective(model, &ws.trial, &ws.x_tilde, params, spheres)
+                    <= phi + 1e-4 * alpha * slope
+            {
+                accepted = true;
+                break;
+            }
+            alpha *= 0.5;
+        }
+        if !accepted {
+            break;
+        }
+        std::mem::swap(&mut ws.x, &mut ws.trial);
+        g_norm = gradient(
+            model,
+            system,
+            &ws.x,
+            &ws.x_tilde,
+            params,
+            spheres,
+            &mut ws.gradient,
+        );
+    }
+    report.relative_gradient = if g0 > 0.0 { g_norm / g0 } else { 0.0 };
+    report.converged = g_norm <= threshold || report.at_round_off;
+    ws.last = report;
+    let ClothState {
+        positions,
+        velocities,
+    } = state;
+    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+        if pinned[i] {
+            continue;
+        }
+        *v = ((ws.x[i] - x.as_dvec3()) / dt).as_vec3a();
+        *x = ws.x[i].as_vec3a();
+    }
+    Ok(StepReport {
+        iterations,
+        residual: Some(report.relative_gradient as f32),
+    })
+}
+
+#[cfg(test)]
+#[path = "exact_tests.rs"]
+mod tests;

@@ -1,0 +1,203 @@
+use bevy::math::Affine3A;
+
+use super::*;
+use crate::model::ClothBuilder;
+use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
+use crate::solver::linear::{self as lin, LinearConfig, LinearSolver, LinearWorkspace};
+use crate::solver::step_error;
+
+fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
+    let model = ClothBuilder::lab().build().unwrap();
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let mut ws = ExactWorkspace::default();
+    for _ in 0..steps {
+        step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &ExactConfig::default(),
+            &[],
+            &mut ws,
+        )
+        .unwrap();
+    }
+    (model, state)
+}
+
+fn exact_step(
+    model: &ClothModel,
+    start: &ClothState,
+    config: &ExactConfig,
+) -> (ClothState, ExactReport, u32) {
+    let mut state = start.clone();
+    let mut ws = ExactWorkspace::default();
+    let r = step(model, &mut state, &StepParams::LAB, config, &[], &mut ws).unwrap();
+    (state, ws.last_report(), r.iterations)
+}
+
+#[test]
+fn the_exact_step_meets_its_gradient_tolerance() {
+    for steps in [0, 10, 40] {
+        let (model, start) = lab_swinging(steps);
+        let (state, report, iterations) = exact_step(&model, &start, &ExactConfig::default());
+        assert!(report.converged, "after {steps}: {report:?}");
+        assert!(
+            report.relative_gradient <= 1e-9
+                || (report.at_round_off && report.relative_gradient < 1e-7),
+            "{report:?}"
+        );
+        assert_eq!(iterations, report.true_hessian + report.projected_hessian);
+        assert!(state.is_finite());
+        // Pins stay.
+        assert_eq!(state.positions[0], start.positions[0]);
+    }
+}
+
+#[test]
+fn the_true_hessian_converges_in_fewer_iterations_than_the_projected_one() {
+    let (model, start) = lab_swinging(10);
+    let (a, true_report, true_iterations) = exact_step(&model, &start, &ExactConfig::default());
+    let projected = ExactConfig {
+        projected_only: true,
+        max_iterations: 1000,
+        ..ExactConfig::default()
+    };
+    let (b, projected_report, projected_iterations) = exact_step(&model, &start, &projected);
+    assert!(true_report.converged && projected_report.converged);
+    assert!(
+        true_iterations < projected_iterations,
+        "true {true_report:?} projected {projected_report:?}"
+    );
+    assert_eq!(projected_report.true_hessian, 0);
+    // Both reach the same minimiser.
+    assert!(step_error(&a.positions, &b.positions, &start.positions) < 1e-5);
+}
+
+#[test]
+fn jacobi_and_chebyshev_errors_fall_with_iterations_and_chebyshev_is_lower() {
+    let (model, start) = lab_swinging(10);
+    let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
+    let error = |config: ImplicitConfig| {
+        let mut state = start.clone();
+        implicit::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &config,
+            &[],
+            &mut ImplicitWorkspace::default(),
+        )
+        .unwrap();
+        step_error(&state.positions, &exact.positions, &start.positions)
+    };
+    let jacobi: Vec<f64> = [4, 16, 64, 256]
+        .map(|k| error(ImplicitConfig::jacobi(k)))
+        .to_vec();
+    let chebyshev: Vec<f64> = [4, 16, 64, 256]
+        .map(|k| error(ImplicitConfig::chebyshev(k, 0.995)))
+        .to_vec();
+    for w in jacobi.windows(2) {
+        assert!(w[1] < w[0], "jacobi {jacobi:?}");
+    }
+    assert!(chebyshev[3] < chebyshev[1], "chebyshev {chebyshev:?}");
+    for (c, j) in chebyshev.iter().zip(&jacobi).skip(1) {
+        assert!(c < j, "chebyshev {chebyshev:?} jacobi {jacobi:?}");
+    }
+}
+
+#[test]
+fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
+    let model = ClothBuilder::assignment(8, 8).build().unwrap();
+    let params = StepParams {
+        dt: 5e-3,
+        stiffness: crate::solver::SpringStiffness::uniform(10.0),
+        damping: 1.0,
+        ..StepParams::LAB
+    };
+    let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let mut ws = LinearWorkspace::default();
+    let direct = LinearConfig {
+        solver: LinearSolver::Direct,
+        ..LinearConfig::default()
+    };
+    for _ in 0..30 {
+        lin::step(&model, &mut start, &params, &direct, &[], &mut ws).unwrap();
+    }
+    let mut linear_state = start.clone();
+    lin::step(&model, &mut linear_state, &params, &direct, &[], &mut ws).unwrap();
+    let mut newton_state = start.clone();
+    let config = ExactConfig {
+        max_iterations: 1,
+        start_at_current: true,
+        line_search: false,
+        tolerance: 0.0,
+        ..ExactConfig::default()
+    };
+    let mut exact_ws = ExactWorkspace::default();
+    step(
+        &model,
+        &mut newton_state,
+        &params,
+        &config,
+        &[],
+        &mut exact_ws,
+    )
+    .unwrap();
+    assert_eq!(exact_ws.last_report().true_hessian, 1);
+    let worst = newton_state
+        .velocities
+        .iter()
+        .zip(&linear_state.velocities)
+        .map(|(a, b)| (*a - *b).length() / b.length().max(1e-3))
+        .fold(0.0, f32::max);
+    assert!(worst < 1e-4, "{worst}");
+}
+
+#[test]
+fn cg_error_falls_with_iterations_against_the_direct_solve() {
+    let model = ClothBuilder::assignment(12, 12).build().unwrap();
+    let params = StepParams {
+        dt: 5e-3,
+        stiffness: crate::solver::SpringStiffness::uniform(10.0),
+        damping: 1.0,
+        ..StepParams::LAB
+    };
+    let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let direct = LinearConfig {
+        solver: LinearSolver::Direct,
+        ..LinearConfig::default()
+    };
+    let mut ws = LinearWorkspace::default();
+    for _ in 0..30 {
+        lin::step(&model, &mut start, &params, &direct, &[], &mut ws).unwrap();
+    }
+    let mut reference = start.clone();
+    lin::step(&model, &mut reference, &params, &direct, &[], &mut ws).unwrap();
+    let errors: Vec<f64> = [1u32, 4, 16, 64]
+        .iter()
+        .map(|&k| {
+            let mut s = start.clone();
+            let config = LinearConfig {
+                solver: LinearSolver::Cg(lin::CgConfig {
+                    max_iterations: k,
+                    tolerance: 0.0,
+                    ..lin::CgConfig::default()
+                }),
+                ..LinearConfig::default()
+            };
+            lin::step(
+                &model,
+                &mut s,
+                &params,
+                &config,
+                &[],
+                &mut LinearWorkspace::default(),
+            )
+            .unwrap();
+            step_error(&s.positions, &reference.positions, &start.positions)
+        })
+        .collect();
+    // Falls until CG reaches the direct solution to f32 round-off.
+    assert!(errors[1] < errors[0] && errors[2] < errors[1], "{errors:?}");
+    assert!(errors[3] <= errors[2] && errors[3] < 1e-6, "{errors:?}");
+}
