@@ -188,6 +188,8 @@ pub mod ecs;
 pub mod model;
 #[cfg(feature = "render")]
 pub mod render;
+#[cfg(feature = "report")]
+pub mod report;
 pub mod solver;
 #[cfg(feature = "egui")]
 pub mod ui;
