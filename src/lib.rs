@@ -27,6 +27,7 @@
 //! |---|---|---|
 //! | `render` | [`render`]: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame; `DragPlugin` drags entities with the mouse (Bevy picking). Turns on Bevy's windowing, rendering, PBR and picking features (X11 only: no system `-dev` packages). | Yes |
 //! | `egui` | [`ui`]: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | Yes |
+//! | `report` | [`report`]: the error-against-run-time report (SVG charts with `plotters`, progress with `indicatif`). | Yes |
 //! | `examples` | What the windowed examples need beyond the library (`bevy_panorbit_camera`). | Yes |
 //!
 //! With `default-features = false` the crate builds only the simulation: Bevy's

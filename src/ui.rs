@@ -377,7 +377,11 @@ fn method_ui(
             i.chebyshev = on.then(Default::default);
         }
         if let Some(c) = &mut i.chebyshev {
-            ui.add(egui::Slider::new(&mut c.rho, 0.5..=0.9999).text("rho"));
+            ui.checkbox(&mut c.auto_rho, "estimate rho each step");
+            ui.add_enabled(
+                !c.auto_rho,
+                egui::Slider::new(&mut c.rho, 0.5..=0.9999).text("rho"),
+            );
         }
     }
     if let Some(mut p) = pbd {

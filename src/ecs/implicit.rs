@@ -5,7 +5,7 @@ use bevy::prelude::*;
 use super::method::{ClothMethod, MethodPlugin};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
-use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
+use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace, Rho};
 use crate::solver::{StepError, StepParams, StepReport};
 
 /// Chebyshev acceleration of the implicit solver (Wang 2015).
@@ -14,12 +14,18 @@ use crate::solver::{StepError, StepParams, StepReport};
 pub struct Chebyshev {
     /// Estimated spectral radius of the Jacobi iteration, in `(0, 1)`.
     pub rho: f32,
+    /// Estimate `ρ` each step from the first Jacobi iterations instead
+    /// ([`Rho::Auto`](crate::solver::implicit::Rho::Auto)).
+    pub auto_rho: bool,
 }
 
 impl Default for Chebyshev {
-    /// The lab's `ρ = 0.995`.
+    /// The lab's fixed `ρ = 0.995`.
     fn default() -> Self {
-        Self { rho: 0.995 }
+        Self {
+            rho: 0.995,
+            auto_rho: false,
+        }
     }
 }
 
@@ -48,7 +54,21 @@ impl ImplicitSolver {
     pub const fn chebyshev(iterations: u32, rho: f32) -> Self {
         Self {
             iterations,
-            chebyshev: Some(Chebyshev { rho }),
+            chebyshev: Some(Chebyshev {
+                rho,
+                auto_rho: false,
+            }),
+        }
+    }
+
+    /// Chebyshev-accelerated Jacobi with `ρ` estimated each step.
+    pub const fn chebyshev_auto(iterations: u32) -> Self {
+        Self {
+            iterations,
+            chebyshev: Some(Chebyshev {
+                rho: 0.995,
+                auto_rho: true,
+            }),
         }
     }
 
@@ -56,7 +76,13 @@ impl ImplicitSolver {
     pub fn config(&self) -> ImplicitConfig {
         ImplicitConfig {
             iterations: self.iterations,
-            chebyshev_rho: self.chebyshev.map(|c| c.rho),
+            chebyshev: self.chebyshev.map(|c| {
+                if c.auto_rho {
+                    Rho::Auto
+                } else {
+                    Rho::Fixed(c.rho)
+                }
+            }),
         }
     }
 }

@@ -15,24 +15,38 @@
 //!    `ω₂ = 2/(2 − ρ²)`, `ω_{k+1} = 4/(4 − ρ²ω_k)`;
 //! 3. `vᵢ ← vᵢ + (xᵢ − x̃ᵢ)/dt` (lab 1.c).
 //!
-//! `k` in `4k` is the stiffness of the cloth's springs (the largest, if it
-//! has several kinds). Pinned vertices never move. A penalty sphere adds its
+//! `4k` is the lab's diagonal for its triangle-edge (stretch) springs. A
+//! cloth with shear or bending springs uses, per vertex, the sum of its
+//! springs' stiffnesses instead (4k does not bound the Hessian there and the
+//! iteration diverges). `ρ` is fixed or estimated per step ([`Rho`]). Pinned
+//! vertices never move. A penalty sphere adds its
 //! force to `f` and its stiffness `c` to the diagonal of a vertex in contact.
 
 use bevy::math::Vec3A;
 
 use super::{StepError, StepParams, StepReport, check_state, gradient};
 use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState, ParamError};
+use crate::model::{ClothModel, ClothState, ParamError, SpringKind};
+
+/// The spectral radius `ρ` that Chebyshev acceleration assumes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Rho {
+    /// A fixed value in `(0, 1)` (the lab: 0.995).
+    Fixed(f32),
+    /// Estimated each step: the first `S = clamp(K/4, 2, 8)` iterations are
+    /// plain Jacobi, and `ρ` is the geometric mean decay of their update
+    /// norms `‖x_{k+1} − x_k‖` over the second half of them (Wang 2015
+    /// delays acceleration for the same reason); Chebyshev then runs with it.
+    Auto,
+}
 
 /// Settings of the implicit solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ImplicitConfig {
     /// Jacobi iterations per step (the lab: 32).
     pub iterations: u32,
-    /// Chebyshev acceleration with this spectral-radius estimate `ρ ∈ (0, 1)`
-    /// (the lab's value is 0.995), or `None` for plain Jacobi.
-    pub chebyshev_rho: Option<f32>,
+    /// Chebyshev acceleration with this `ρ`, or `None` for plain Jacobi.
+    pub chebyshev: Option<Rho>,
 }
 
 impl ImplicitConfig {
@@ -40,7 +54,7 @@ impl ImplicitConfig {
     pub const fn jacobi(iterations: u32) -> Self {
         Self {
             iterations,
-            chebyshev_rho: None,
+            chebyshev: None,
         }
     }
 
@@ -48,7 +62,15 @@ impl ImplicitConfig {
     pub const fn chebyshev(iterations: u32, rho: f32) -> Self {
         Self {
             iterations,
-            chebyshev_rho: Some(rho),
+            chebyshev: Some(Rho::Fixed(rho)),
+        }
+    }
+
+    /// Chebyshev-accelerated Jacobi with `ρ` estimated each step.
+    pub const fn chebyshev_auto(iterations: u32) -> Self {
+        Self {
+            iterations,
+            chebyshev: Some(Rho::Auto),
         }
     }
 
@@ -57,7 +79,7 @@ impl ImplicitConfig {
         if self.iterations == 0 {
             return Err(ParamError::Iterations);
         }
-        if let Some(rho) = self.chebyshev_rho
+        if let Some(Rho::Fixed(rho)) = self.chebyshev
             && !(rho > 0.0 && rho < 1.0)
         {
             return Err(ParamError::Rho(rho));
@@ -80,6 +102,8 @@ pub struct ImplicitWorkspace {
     gradient: Vec<Vec3A>,
     terms: Vec<Vec3A>,
     inv_diag: Vec<f32>,
+    base_diag: Vec<f32>,
+    update_norms: Vec<f64>,
     /// The iterate before last, for Chebyshev; empty without it.
     x_prev: Vec<Vec3A>,
     /// Inverse diagonal including contact stiffness; empty without spheres.
@@ -96,6 +120,7 @@ impl ImplicitWorkspace {
         self.x_tilde.resize(vertices, Vec3A::ZERO);
         self.gradient.resize(vertices, Vec3A::ZERO);
         self.inv_diag.resize(vertices, 0.0);
+        self.base_diag.resize(vertices, 0.0);
         self.terms.resize(springs, Vec3A::ZERO);
         if chebyshev {
             self.x_prev.resize(vertices, Vec3A::ZERO);
@@ -129,13 +154,22 @@ pub fn step(
     ws.prepare(
         n,
         model.topology().springs().len(),
-        config.chebyshev_rho.is_some(),
+        config.chebyshev.is_some(),
         !spheres.is_empty(),
     );
     let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);
     let pinned = model.pinned();
-    let hessian_springs = 4.0 * params.stiffness.max_present(model);
+    // The diagonal Hessian: the lab's 4k for a cloth of triangle-edge
+    // (stretch) springs only; with shear or bending springs a vertex has up
+    // to 12 springs and 4k no longer bounds the Hessian (the iteration
+    // diverges), so the sum of the vertex's spring stiffnesses is used.
+    let counts = model.topology().spring_counts();
+    let lab_diagonal =
+        counts[SpringKind::Shear as usize] == 0 && counts[SpringKind::Bend as usize] == 0;
+    let k = params.stiffness.as_array();
+    let springs = model.topology().springs();
+    let adjacency = model.topology().adjacency();
     let ClothState {
         positions: x,
         velocities: v,
@@ -148,16 +182,33 @@ pub fn step(
             x[i] += dt * v[i];
         }
         ws.x_tilde[i] = x[i];
-        ws.inv_diag[i] = 1.0 / (model.masses()[i] * inv_dt2 + hessian_springs);
+        let spring_diag = if lab_diagonal {
+            4.0 * k[SpringKind::Stretch as usize]
+        } else {
+            adjacency
+                .of(i)
+                .iter()
+                .map(|inc| k[springs[inc.spring as usize].kind as usize])
+                .sum()
+        };
+        ws.base_diag[i] = model.masses()[i] * inv_dt2 + spring_diag;
+        ws.inv_diag[i] = 1.0 / ws.base_diag[i];
     }
-    if config.chebyshev_rho.is_some() {
+    if config.chebyshev.is_some() {
         ws.x_prev.copy_from_slice(x);
     }
 
     // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
     let mut omega = 1.0f32;
+    // Iterations before acceleration starts, and ρ.
+    let (delay, mut rho) = match config.chebyshev {
+        Some(Rho::Auto) => ((config.iterations / 4).clamp(2, 8), 0.0),
+        Some(Rho::Fixed(r)) => (0, r),
+        None => (0, 0.0),
+    };
+    ws.update_norms.clear();
     for k in 0..config.iterations {
-        objective_gradient(model, x, params, spheres, inv_dt2, hessian_springs, ws);
+        objective_gradient(model, x, params, spheres, ws);
         // Pinned vertices have a zero gradient, so neither update moves them.
         let inv_diag = if spheres.is_empty() {
             &ws.inv_diag
@@ -165,30 +216,39 @@ pub fn step(
             &ws.contact_diag
         };
         let updates = x.iter_mut().zip(&ws.gradient).zip(inv_diag);
-        match config.chebyshev_rho {
+        match config.chebyshev {
             None => {
                 for ((xi, g), d) in updates {
                     *xi -= *g * *d;
                 }
             }
-            Some(rho) => {
-                omega = match k {
-                    0 => 1.0,
-                    1 => 2.0 / (2.0 - rho * rho),
+            Some(kind) => {
+                if kind == Rho::Auto && k == delay {
+                    rho = estimate_rho(&ws.update_norms);
+                }
+                omega = match k.checked_sub(delay) {
+                    None | Some(0) => 1.0,
+                    Some(1) => 2.0 / (2.0 - rho * rho),
                     _ => 4.0 / (4.0 - rho * rho * omega),
                 };
+                let mut update = 0.0f64;
                 for (((xi, g), d), prev) in updates.zip(ws.x_prev.iter_mut()) {
-                    let x_hat = *xi - *g * *d;
+                    let step = *g * *d;
+                    let x_hat = *xi - step;
                     let before = *prev;
                     *prev = *xi;
                     *xi = omega * (x_hat - before) + before;
+                    update += f64::from(step.length_squared());
+                }
+                if k < delay {
+                    ws.update_norms.push(update.sqrt());
                 }
             }
         }
     }
 
     // Residual at the final iterate.
-    objective_gradient(model, x, params, spheres, inv_dt2, hessian_springs, ws);
+    objective_gradient(model, x, params, spheres, ws);
     let residual = ws
         .gradient
         .iter()
@@ -216,8 +276,6 @@ fn objective_gradient(
     x: &[Vec3A],
     params: &StepParams,
     spheres: &[PenaltySphere],
-    inv_dt2: f32,
-    hessian_springs: f32,
     ws: &mut ImplicitWorkspace,
 ) {
     gradient(
@@ -234,11 +292,20 @@ fn objective_gradient(
             x,
             spheres,
             &mut ws.gradient,
+            &ws.base_diag,
             &mut ws.contact_diag,
-            inv_dt2,
-            hessian_springs,
         );
     }
+}
+
+/// `ρ` from Jacobi update norms: their geometric mean decay over the second
+/// half, clamped to `[0.5, 0.9999]`.
+fn estimate_rho(norms: &[f64]) -> f32 {
+    let (lo, hi) = (norms.len() / 2, norms.len().saturating_sub(1));
+    if hi <= lo || norms[lo] <= 0.0 || !norms[hi].is_finite() {
+        return 0.9;
+    }
+    ((norms[hi] / norms[lo]).powf(1.0 / (hi - lo) as f64) as f32).clamp(0.5, 0.9999)
 }
 
 /// Adds penalty forces to the gradient (`g −= f_c`) and writes the inverse
@@ -248,13 +315,12 @@ fn add_penalty(
     x: &[Vec3A],
     spheres: &[PenaltySphere],
     gradient: &mut [Vec3A],
+    base_diag: &[f32],
     inv_diag: &mut [f32],
-    inv_dt2: f32,
-    hessian_springs: f32,
 ) {
     let pinned = model.pinned();
-    for (i, &m) in model.masses().iter().enumerate() {
-        let mut diag = m * inv_dt2 + hessian_springs;
+    for i in 0..model.vertex_count() {
+        let mut diag = base_diag[i];
         if !pinned[i] {
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {
