@@ -225,15 +225,14 @@ fn step(method: Method, scene: &ReportScene, state: &mut ClothState, ws: &mut Wo
         Method::Jacobi(k) => {
             implicit::step(m, state, p, &ImplicitConfig::jacobi(k), s, &mut ws.implicit).is_ok()
         }
-        Method::Chebyshev(k, rho) => implicit::step(
-            m,
-            state,
-            p,
-            &ImplicitConfig::chebyshev(k, rho),
-            s,
-            &mut ws.implicit,
-        )
-        .is_ok(),
+        Method::Chebyshev(k, rho) => {
+            let config = if rho > 0.0 {
+                ImplicitConfig::chebyshev(k, rho)
+            } else {
+                ImplicitConfig::chebyshev_auto(k)
+            };
+            implicit::step(m, state, p, &config, s, &mut ws.implicit).is_ok()
+        }
         Method::Cg(k) => {
             let config = LinearConfig {
                 solver: LinearSolver::Cg(CgConfig {
@@ -793,6 +792,9 @@ mod tests {
         let md = run(&ReportConfig::tiny(&dir)).unwrap();
         assert!(md.contains("## Lab cloth 6×6, hanging"));
         assert!(md.contains("Jacobi/Chebyshev iteration ratio"));
+        assert!(md.contains("Chebyshev (ρ: Auto)"));
+        // Every method ran: none failed on its first step.
+        assert!(!md.contains("inf ("), "{md}");
         for file in ["README.md", "lab6-step.svg", "lab6-trajectory.svg"] {
             let text = std::fs::read_to_string(dir.join(file)).unwrap();
             assert!(text.len() > 500, "{file} is too short");
