@@ -19,12 +19,9 @@ mod common;
 use std::process::ExitCode;
 
 use bevy::picking::Pickable;
-use bevy::picking::mesh_picking::MeshPickingPlugin;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, checker_image, cloth_mesh};
-use bevy_cloth::ui::ClothInspectorPlugin;
-use bevy_panorbit_camera::PanOrbitCameraPlugin;
+use bevy_cloth::render::{checker_image, cloth_mesh};
 use common::{Method, ScreenshotMode};
 
 const USAGE: &str = "usage: assignment [--method M] [--rows R] [--cols C] [--h SECONDS] \
@@ -90,29 +87,11 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let mut app = App::new();
-    app.add_plugins(common::default_plugins("bevy_cloth — assignment"))
-        .add_plugins((
-            MeshPickingPlugin,
-            PanOrbitCameraPlugin,
-            ClothPlugins::default(),
-            ClothRenderPlugin,
-            DragPlugin,
-            ClothInspectorPlugin::default(),
-        ))
-        .insert_resource(Time::<Fixed>::from_seconds(options.h))
-        .insert_resource(options)
+    let mut app = common::windowed_app("bevy_cloth — assignment", options.h, screenshot);
+    app.insert_resource(options)
         .add_systems(Startup, setup)
-        .add_systems(FixedUpdate, sweep.in_set(ClothSystems::First))
-        .add_systems(Update, common::hold_camera_while_dragging);
-    if let Some(mode) = screenshot {
-        app.insert_resource(mode)
-            .add_systems(Update, common::screenshot_and_exit);
-    }
-    match app.run() {
-        AppExit::Success => ExitCode::SUCCESS,
-        AppExit::Error(code) => ExitCode::from(code.get()),
-    }
+        .add_systems(FixedUpdate, sweep.in_set(ClothSystems::First));
+    common::run(app)
 }
 
 /// Moves the sphere with the simulated time (it stops while paused).

@@ -16,12 +16,10 @@ mod common;
 use std::process::ExitCode;
 
 use bevy::picking::Pickable;
-use bevy::picking::mesh_picking::MeshPickingPlugin;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, Draggable, checker_image, cloth_mesh};
-use bevy_cloth::ui::{ClothInspectorPlugin, ClothResolution};
-use bevy_panorbit_camera::PanOrbitCameraPlugin;
+use bevy_cloth::render::{Draggable, checker_image, cloth_mesh};
+use bevy_cloth::ui::ClothResolution;
 use common::{Method, ScreenshotMode};
 
 const USAGE: &str = "usage: lab [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct] \
@@ -77,28 +75,9 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let mut app = App::new();
-    app.add_plugins(common::default_plugins("bevy_cloth — lab"))
-        .add_plugins((
-            MeshPickingPlugin,
-            PanOrbitCameraPlugin,
-            ClothPlugins::default(),
-            ClothRenderPlugin,
-            DragPlugin,
-            ClothInspectorPlugin::default(),
-        ))
-        .insert_resource(Time::<Fixed>::from_seconds(0.0333))
-        .insert_resource(options)
-        .add_systems(Startup, setup)
-        .add_systems(Update, common::hold_camera_while_dragging);
-    if let Some(mode) = screenshot {
-        app.insert_resource(mode)
-            .add_systems(Update, common::screenshot_and_exit);
-    }
-    match app.run() {
-        AppExit::Success => ExitCode::SUCCESS,
-        AppExit::Error(code) => ExitCode::from(code.get()),
-    }
+    let mut app = common::windowed_app("bevy_cloth — lab", 0.0333, screenshot);
+    app.insert_resource(options).add_systems(Startup, setup);
+    common::run(app)
 }
 
 fn setup(

@@ -4,12 +4,16 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use std::process::ExitCode;
+
+use bevy::picking::mesh_picking::MeshPickingPlugin;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::window::WindowResolution;
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::Dragging;
-use bevy_panorbit_camera::PanOrbitCamera;
+use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, Dragging};
+use bevy_cloth::ui::ClothInspectorPlugin;
+use bevy_panorbit_camera::{PanOrbitCamera, PanOrbitCameraPlugin};
 
 /// A method named on the command line.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,16 +96,41 @@ pub fn screenshot_option(args: &mut Vec<String>) -> Result<Option<ScreenshotMode
     }))
 }
 
-/// The window and default plugins.
-pub fn default_plugins(title: &str) -> bevy::app::PluginGroupBuilder {
-    DefaultPlugins.set(WindowPlugin {
+/// A windowed app with the cloth, rendering, picking, drag, panel and orbit
+/// camera plugins, stepping every `dt` seconds, in screenshot mode if given.
+pub fn windowed_app(title: &str, dt: f64, screenshot: Option<ScreenshotMode>) -> App {
+    let mut app = App::new();
+    app.add_plugins(DefaultPlugins.set(WindowPlugin {
         primary_window: Some(Window {
             title: title.into(),
             resolution: WindowResolution::new(1280, 720),
             ..default()
         }),
         ..default()
-    })
+    }))
+    .add_plugins((
+        MeshPickingPlugin,
+        PanOrbitCameraPlugin,
+        ClothPlugins::default(),
+        ClothRenderPlugin,
+        DragPlugin,
+        ClothInspectorPlugin::default(),
+    ))
+    .insert_resource(Time::<Fixed>::from_seconds(dt))
+    .add_systems(Update, hold_camera_while_dragging);
+    if let Some(mode) = screenshot {
+        app.insert_resource(mode)
+            .add_systems(Update, screenshot_and_exit);
+    }
+    app
+}
+
+/// Runs the app and turns its exit into the process's.
+pub fn run(mut app: App) -> ExitCode {
+    match app.run() {
+        AppExit::Success => ExitCode::SUCCESS,
+        AppExit::Error(code) => ExitCode::from(code.get()),
+    }
 }
 
 /// A sun with shadows, soft ambient light, and a ground plane at `ground_y`.

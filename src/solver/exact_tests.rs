@@ -216,18 +216,46 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = ExactWorkspace::default();
     for _ in 0..30 {
-        step(&model, &mut start, &params, &ExactConfig::default(), &[], &mut ws).unwrap();
+        step(
+            &model,
+            &mut start,
+            &params,
+            &ExactConfig::default(),
+            &[],
+            &mut ws,
+        )
+        .unwrap();
     }
     let mut exact = start.clone();
-    step(&model, &mut exact, &params, &ExactConfig::default(), &[], &mut ws).unwrap();
+    step(
+        &model,
+        &mut exact,
+        &params,
+        &ExactConfig::default(),
+        &[],
+        &mut ws,
+    )
+    .unwrap();
     let error = |config: ImplicitConfig| {
         let mut s = start.clone();
-        implicit::step(&model, &mut s, &params, &config, &[], &mut ImplicitWorkspace::default()).unwrap();
+        implicit::step(
+            &model,
+            &mut s,
+            &params,
+            &config,
+            &[],
+            &mut ImplicitWorkspace::default(),
+        )
+        .unwrap();
         step_error(&s.positions, &exact.positions, &start.positions)
     };
-    let jacobi: Vec<f64> = [8, 64, 512].map(|k| error(ImplicitConfig::jacobi(k))).to_vec();
+    let jacobi: Vec<f64> = [8, 64, 512]
+        .map(|k| error(ImplicitConfig::jacobi(k)))
+        .to_vec();
     assert!(jacobi[1] < jacobi[0] && jacobi[2] < jacobi[1], "{jacobi:?}");
-    let auto: Vec<f64> = [8, 64, 512].map(|k| error(ImplicitConfig::chebyshev_auto(k))).to_vec();
+    let auto: Vec<f64> = [8, 64, 512]
+        .map(|k| error(ImplicitConfig::chebyshev_auto(k)))
+        .to_vec();
     assert!(auto[2] < 1e-3, "{auto:?}");
     assert!(auto[1] < jacobi[1], "auto {auto:?} jacobi {jacobi:?}");
 }
@@ -238,8 +266,15 @@ fn estimated_rho_accelerates_the_lab_step() {
     let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
     let error = |config: ImplicitConfig| {
         let mut state = start.clone();
-        implicit::step(&model, &mut state, &StepParams::LAB, &config, &[], &mut ImplicitWorkspace::default())
-            .unwrap();
+        implicit::step(
+            &model,
+            &mut state,
+            &StepParams::LAB,
+            &config,
+            &[],
+            &mut ImplicitWorkspace::default(),
+        )
+        .unwrap();
         step_error(&state.positions, &exact.positions, &start.positions)
     };
     for k in [32, 128] {

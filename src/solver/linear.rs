@@ -740,33 +740,7 @@ impl SparseCholesky {
         a: SparseColMatRef<'_, usize, f64>,
         rhs: &mut [f64],
     ) -> Result<(), SolveError> {
-        self.analyse(a)?;
-        let n = rhs.len();
-        let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
-            return Err(SolveError::Factorization);
-        };
-        let ldlt = sym
-            .factorize_numeric_ldlt(
-                &mut self.factor,
-                a,
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(memory),
-                Default::default(),
-            )
-            .map_err(|_| SolveError::Factorization)?;
-        ldlt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(memory),
-        );
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(SolveError::Factorization)
-        }
+        self.solve(a, rhs, false)
     }
 
     /// Solves `A x = rhs` in place by LLᵀ; fails with
@@ -776,28 +750,47 @@ impl SparseCholesky {
         a: SparseColMatRef<'_, usize, f64>,
         rhs: &mut [f64],
     ) -> Result<(), SolveError> {
+        self.solve(a, rhs, true)
+    }
+
+    fn solve(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+        rhs: &mut [f64],
+        llt: bool,
+    ) -> Result<(), SolveError> {
         self.analyse(a)?;
         let n = rhs.len();
         let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
             return Err(SolveError::Factorization);
         };
-        let llt = sym
-            .factorize_numeric_llt(
+        let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        let (lower, par) = (Side::Lower, Par::Seq);
+        if llt {
+            sym.factorize_numeric_llt(
                 &mut self.factor,
                 a,
-                Side::Lower,
+                lower,
                 Default::default(),
-                Par::Seq,
+                par,
                 MemStack::new(memory),
                 Default::default(),
             )
-            .map_err(|_| SolveError::NotPositiveDefinite)?;
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(memory),
-        );
+            .map_err(|_| SolveError::NotPositiveDefinite)?
+            .solve_in_place_with_conj(Conj::No, rhs_mat, par, MemStack::new(memory));
+        } else {
+            sym.factorize_numeric_ldlt(
+                &mut self.factor,
+                a,
+                lower,
+                Default::default(),
+                par,
+                MemStack::new(memory),
+                Default::default(),
+            )
+            .map_err(|_| SolveError::Factorization)?
+            .solve_in_place_with_conj(Conj::No, rhs_mat, par, MemStack::new(memory));
+        }
         if rhs.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
@@ -805,3 +798,7 @@ impl SparseCholesky {
         }
     }
 }
+
+#[cfg(test)]
+#[path = "linear_tests.rs"]
+mod tests;
