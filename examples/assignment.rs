@@ -22,14 +22,14 @@ use bevy::picking::Pickable;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::{checker_image, cloth_mesh};
-use common::{Method, ScreenshotMode};
+use common::ScreenshotMode;
 
 const USAGE: &str = "usage: assignment [--method M] [--rows R] [--cols C] [--h SECONDS] \
 [--stiffness E] [--mass TOTAL] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]
 struct Options {
-    method: Method,
+    method: MethodChoice,
     rows: usize,
     cols: usize,
     h: f64,
@@ -40,7 +40,7 @@ struct Options {
 fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), String> {
     let screenshot = common::screenshot_option(&mut args)?;
     let mut o = Options {
-        method: Method::LinearCg,
+        method: MethodChoice::LinearCg,
         rows: 30,
         cols: 30,
         h: 5e-3,
@@ -54,7 +54,7 @@ fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), Str
     let mut it = args.into_iter();
     while let Some(a) = it.next() {
         match a.as_str() {
-            "--method" => o.method = Method::parse(&value::<String>(&a, it.next())?)?,
+            "--method" => o.method = value::<String>(&a, it.next())?.parse()?,
             "--rows" => o.rows = value(&a, it.next())?,
             "--cols" => o.cols = value(&a, it.next())?,
             "--h" | "--dt" => o.h = value(&a, it.next())?,

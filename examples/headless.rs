@@ -47,36 +47,10 @@ enum Scene {
     Assignment,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Method {
-    Implicit,
-    Chebyshev,
-    Pbd,
-    Symplectic,
-    LinearCg,
-    LinearDirect,
-    Exact,
-}
-
-impl Method {
-    fn parse(s: &str) -> Option<Self> {
-        Some(match s {
-            "implicit" | "jacobi" => Self::Implicit,
-            "chebyshev" => Self::Chebyshev,
-            "pbd" => Self::Pbd,
-            "symplectic" => Self::Symplectic,
-            "linear-cg" => Self::LinearCg,
-            "linear-direct" => Self::LinearDirect,
-            "exact" => Self::Exact,
-            _ => return None,
-        })
-    }
-}
-
 #[derive(Debug, Clone)]
 struct Options {
     scene: Scene,
-    method: Method,
+    method: MethodChoice,
     n: usize,
     rows: usize,
     cols: usize,
@@ -97,7 +71,7 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             scene: Scene::Lab,
-            method: Method::Implicit,
+            method: MethodChoice::Jacobi,
             n: 21,
             rows: 2,
             cols: 2,
@@ -136,14 +110,7 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
                     _ => return Err(format!("unknown scene '{scene}' (known: lab, assignment)")),
                 };
             }
-            "--method" => {
-                let m: String = parse(&flag, args.next())?;
-                o.method = Method::parse(&m).ok_or_else(|| {
-                    format!(
-                        "unknown method '{m}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct, exact)"
-                    )
-                })?;
-            }
+            "--method" => o.method = parse::<String>(&flag, args.next())?.parse()?,
             "--n" => o.n = parse(&flag, args.next())?,
             "--rows" => o.rows = parse(&flag, args.next())?,
             "--cols" => o.cols = parse(&flag, args.next())?,
@@ -165,7 +132,7 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
     if o.iterations == Some(0) {
         return Err("--iterations must be at least 1".into());
     }
-    if o.method == Method::Chebyshev && !(o.rho > 0.0 && o.rho < 1.0) {
+    if o.method == MethodChoice::Chebyshev && !(o.rho > 0.0 && o.rho < 1.0) {
         return Err(format!("--rho must lie in (0, 1), got {}", o.rho));
     }
     Ok(o)
@@ -253,21 +220,23 @@ fn run(o: &Options) -> Result<(), String> {
         SpringJacobian::Exact
     };
     match o.method {
-        Method::Implicit => cloth.insert(ImplicitSolver::jacobi(iterations.unwrap_or(32))),
-        Method::Chebyshev => {
+        MethodChoice::Jacobi => cloth.insert(ImplicitSolver::jacobi(iterations.unwrap_or(32))),
+        MethodChoice::Chebyshev => {
             cloth.insert(ImplicitSolver::chebyshev(iterations.unwrap_or(32), o.rho))
         }
-        Method::Pbd => cloth.insert(PbdSolver::new(iterations.unwrap_or(32))),
-        Method::Symplectic => cloth.insert(SymplecticSolver),
-        Method::LinearCg => cloth.insert(
+        MethodChoice::Pbd => cloth.insert(PbdSolver::new(iterations.unwrap_or(32))),
+        MethodChoice::Symplectic => cloth.insert(SymplecticSolver),
+        MethodChoice::LinearCg => cloth.insert(
             LinearImplicitSolver::cg(CgConfig {
                 max_iterations: iterations.unwrap_or(25),
                 ..CgConfig::default()
             })
             .with_springs(springs),
         ),
-        Method::LinearDirect => cloth.insert(LinearImplicitSolver::direct().with_springs(springs)),
-        Method::Exact => cloth.insert(ExactSolver::default()),
+        MethodChoice::LinearDirect => {
+            cloth.insert(LinearImplicitSolver::direct().with_springs(springs))
+        }
+        MethodChoice::Exact => cloth.insert(ExactSolver::default()),
     };
     let cloth = cloth.id();
     if o.sphere {

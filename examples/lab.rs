@@ -20,29 +20,27 @@ use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::{Draggable, checker_image, cloth_mesh};
 use bevy_cloth::ui::ClothResolution;
-use common::{Method, ScreenshotMode};
+use common::ScreenshotMode;
 
 const USAGE: &str = "usage: lab [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct] \
 [--n N] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]
 struct LabOptions {
-    method: Method,
+    method: MethodChoice,
     n: u32,
 }
 
 fn parse(mut args: Vec<String>) -> Result<(LabOptions, Option<ScreenshotMode>), String> {
     let screenshot = common::screenshot_option(&mut args)?;
     let mut options = LabOptions {
-        method: Method::Chebyshev,
+        method: MethodChoice::Chebyshev,
         n: 21,
     };
     let mut it = args.into_iter();
     while let Some(a) = it.next() {
         match a.as_str() {
-            "--method" => {
-                options.method = Method::parse(&it.next().ok_or("--method needs a name")?)?
-            }
+            "--method" => options.method = it.next().ok_or("--method needs a name")?.parse()?,
             "--n" => {
                 let v = it.next().ok_or("--n needs a number")?;
                 options.n = v.parse().map_err(|_| format!("--n: cannot parse '{v}'"))?;

@@ -204,8 +204,8 @@ pub use ecs::{
     Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods,
     ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
     DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin, ImplicitSolver,
-    LinearImplicitPlugin, LinearImplicitSolver, MethodPlugin, PbdPlugin, PbdSolver, SphereCollider,
-    SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
+    LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, MethodPlugin, PbdPlugin, PbdSolver,
+    SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
 };
 
 /// Everything a game needs, in one import.
@@ -214,8 +214,9 @@ pub mod prelude {
     pub use crate::ecs::{
         Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothSimulation, ClothStats,
         ClothStatus, ClothSystems, DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin,
-        ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, PbdPlugin, PbdSolver,
-        SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
+        ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, PbdPlugin,
+        PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
+        SymplecticSolver,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
     pub use crate::solver::linear::{

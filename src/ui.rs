@@ -14,7 +14,7 @@ use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::ecs::{
     Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ExactSolver,
-    ImplicitSolver, LinearImplicitSolver, PbdSolver, SphereCollider, SphereResponse,
+    ImplicitSolver, LinearImplicitSolver, MethodChoice, PbdSolver, SphereCollider, SphereResponse,
     SymplecticSolver,
 };
 use crate::model::{ClothBuildError, ClothModel};
@@ -106,54 +106,6 @@ fn keyboard_shortcuts(
         for (mut cloth, mut stats) in &mut cloths {
             cloth.reset();
             stats.resume();
-        }
-    }
-}
-
-/// The methods the panel offers, in order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Method {
-    Jacobi,
-    Chebyshev,
-    Pbd,
-    Symplectic,
-    LinearCg,
-    LinearDirect,
-    Exact,
-}
-
-impl Method {
-    const ALL: [Method; 7] = [
-        Method::Jacobi,
-        Method::Chebyshev,
-        Method::Pbd,
-        Method::Symplectic,
-        Method::LinearCg,
-        Method::LinearDirect,
-        Method::Exact,
-    ];
-
-    fn label(self) -> &'static str {
-        match self {
-            Method::Jacobi => "Implicit (Jacobi)",
-            Method::Chebyshev => "Implicit (Chebyshev)",
-            Method::Pbd => "PBD (strain limiting)",
-            Method::Symplectic => "Symplectic Euler",
-            Method::LinearCg => "Linearly implicit (CG)",
-            Method::LinearDirect => "Linearly implicit (direct)",
-            Method::Exact => "Exact implicit (Newton)",
-        }
-    }
-
-    /// The [`ClothMethod::KIND`](crate::ecs::ClothMethod::KIND) whose plugin
-    /// steps this method.
-    fn kind(self) -> &'static str {
-        match self {
-            Method::Jacobi | Method::Chebyshev => "implicit",
-            Method::Pbd => "pbd",
-            Method::Symplectic => "symplectic",
-            Method::LinearCg | Method::LinearDirect => "linear-implicit",
-            Method::Exact => "exact",
         }
     }
 }
@@ -322,20 +274,22 @@ fn method_ui(
     (implicit, pbd, symplectic, linear, exact): MethodQuery<'_>,
 ) {
     let current = match (&implicit, &pbd, &symplectic, &linear, &exact) {
-        (Some(i), ..) if i.chebyshev.is_some() => Some(Method::Chebyshev),
-        (Some(_), ..) => Some(Method::Jacobi),
-        (_, Some(_), ..) => Some(Method::Pbd),
-        (_, _, Some(_), ..) => Some(Method::Symplectic),
-        (_, _, _, Some(l), _) if l.solver == LinearSolver::Direct => Some(Method::LinearDirect),
-        (_, _, _, Some(_), _) => Some(Method::LinearCg),
-        (.., Some(_)) => Some(Method::Exact),
+        (Some(i), ..) if i.chebyshev.is_some() => Some(MethodChoice::Chebyshev),
+        (Some(_), ..) => Some(MethodChoice::Jacobi),
+        (_, Some(_), ..) => Some(MethodChoice::Pbd),
+        (_, _, Some(_), ..) => Some(MethodChoice::Symplectic),
+        (_, _, _, Some(l), _) if l.solver == LinearSolver::Direct => {
+            Some(MethodChoice::LinearDirect)
+        }
+        (_, _, _, Some(_), _) => Some(MethodChoice::LinearCg),
+        (.., Some(_)) => Some(MethodChoice::Exact),
         _ => None,
     };
     let mut chosen = current;
     egui::ComboBox::from_label("method")
-        .selected_text(current.map_or("none", Method::label))
+        .selected_text(current.map_or("none", MethodChoice::label))
         .show_ui(ui, |ui| {
-            for m in Method::ALL {
+            for m in MethodChoice::ALL {
                 ui.add_enabled_ui(available.contains(&m.kind()), |ui| {
                     ui.selectable_value(&mut chosen, Some(m), m.label());
                 });
@@ -346,23 +300,23 @@ fn method_ui(
     {
         let mut e = commands.entity(entity);
         match m {
-            Method::Jacobi => e.insert(ImplicitSolver::jacobi(
+            MethodChoice::Jacobi => e.insert(ImplicitSolver::jacobi(
                 implicit.map_or(32, |i| i.iterations),
             )),
-            Method::Chebyshev => e.insert(ImplicitSolver::chebyshev(
+            MethodChoice::Chebyshev => e.insert(ImplicitSolver::chebyshev(
                 implicit.map_or(32, |i| i.iterations),
                 0.995,
             )),
-            Method::Pbd => e.insert(PbdSolver::default()),
-            Method::Symplectic => e.insert(SymplecticSolver),
-            Method::LinearCg => e.insert(
+            MethodChoice::Pbd => e.insert(PbdSolver::default()),
+            MethodChoice::Symplectic => e.insert(SymplecticSolver),
+            MethodChoice::LinearCg => e.insert(
                 LinearImplicitSolver::cg(CgConfig::default())
                     .with_springs(SpringJacobian::ClampCompression),
             ),
-            Method::LinearDirect => e.insert(
+            MethodChoice::LinearDirect => e.insert(
                 LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
             ),
-            Method::Exact => e.insert(ExactSolver::default()),
+            MethodChoice::Exact => e.insert(ExactSolver::default()),
         };
         return;
     }

@@ -15,55 +15,6 @@ use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, Dragging};
 use bevy_cloth::ui::ClothInspectorPlugin;
 use bevy_panorbit_camera::{PanOrbitCamera, PanOrbitCameraPlugin};
 
-/// A method named on the command line.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Method {
-    Jacobi,
-    Chebyshev,
-    Pbd,
-    Symplectic,
-    LinearCg,
-    LinearDirect,
-    Exact,
-}
-
-impl Method {
-    pub fn parse(s: &str) -> Result<Self, String> {
-        Ok(match s {
-            "implicit" | "jacobi" => Self::Jacobi,
-            "chebyshev" => Self::Chebyshev,
-            "pbd" => Self::Pbd,
-            "symplectic" => Self::Symplectic,
-            "linear-cg" => Self::LinearCg,
-            "linear-direct" => Self::LinearDirect,
-            "exact" => Self::Exact,
-            _ => {
-                return Err(format!(
-                    "unknown method '{s}' (known: implicit, chebyshev, pbd, symplectic, linear-cg, linear-direct, exact)"
-                ));
-            }
-        })
-    }
-
-    /// Inserts this method's component.
-    pub fn insert(self, entity: &mut EntityCommands) {
-        match self {
-            Self::Jacobi => entity.insert(ImplicitSolver::jacobi(32)),
-            Self::Chebyshev => entity.insert(ImplicitSolver::chebyshev(32, 0.995)),
-            Self::Pbd => entity.insert(PbdSolver::default()),
-            Self::Symplectic => entity.insert(SymplecticSolver),
-            Self::LinearCg => entity.insert(
-                LinearImplicitSolver::cg(CgConfig::default())
-                    .with_springs(SpringJacobian::ClampCompression),
-            ),
-            Self::LinearDirect => entity.insert(
-                LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
-            ),
-            Self::Exact => entity.insert(ExactSolver::default()),
-        };
-    }
-}
-
 /// Screenshot mode: render `frames` frames, save a PNG, exit.
 #[derive(Resource, Debug, Clone)]
 pub struct ScreenshotMode {

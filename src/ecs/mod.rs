@@ -6,6 +6,7 @@
 //! nothing of entities, schedules or time.
 
 mod assignment;
+mod choice;
 mod collision;
 mod components;
 mod core;
@@ -21,6 +22,7 @@ pub use assignment::{
     ExactPlugin, ExactSolver, LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin,
     SymplecticSolver,
 };
+pub use choice::MethodChoice;
 pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
 pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};
 pub use core::{ClothCorePlugin, ClothSimulation};
