@@ -335,12 +335,7 @@ pub fn estimate_rho(
                 .sqrt()
         })
         .collect();
-    let (lo, hi) = (norms.len() / 2, norms.len() - 1);
-    if hi <= lo || norms[lo] <= 0.0 {
-        return 0.995;
-    }
-    let rho = (norms[hi] / norms[lo]).powf(1.0 / (hi - lo) as f64);
-    rho.clamp(0.5, 0.9999) as f32
+    implicit::rho_from_update_norms(&norms)
 }
 
 /// Runs the report and writes its files. Returns the markdown.

@@ -24,6 +24,37 @@ fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
     (model, state)
 }
 
+/// The assignment's parameters: h = 5e-3, E = 10, no damping.
+fn assignment_params() -> StepParams {
+    StepParams {
+        dt: 5e-3,
+        stiffness: crate::solver::SpringStiffness::uniform(10.0),
+        damping: 1.0,
+        ..StepParams::LAB
+    }
+}
+
+/// The per-step error of one implicit step from `start` against `exact`.
+fn implicit_error(
+    model: &ClothModel,
+    params: &StepParams,
+    start: &ClothState,
+    exact: &ClothState,
+    config: ImplicitConfig,
+) -> f64 {
+    let mut state = start.clone();
+    implicit::step(
+        model,
+        &mut state,
+        params,
+        &config,
+        &[],
+        &mut ImplicitWorkspace::default(),
+    )
+    .unwrap();
+    step_error(&state.positions, &exact.positions, &start.positions)
+}
+
 fn exact_step(
     model: &ClothModel,
     start: &ClothState,
@@ -77,19 +108,8 @@ fn the_true_hessian_converges_in_fewer_iterations_than_the_projected_one() {
 fn jacobi_and_chebyshev_errors_fall_with_iterations_and_chebyshev_is_lower() {
     let (model, start) = lab_swinging(10);
     let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
-    let error = |config: ImplicitConfig| {
-        let mut state = start.clone();
-        implicit::step(
-            &model,
-            &mut state,
-            &StepParams::LAB,
-            &config,
-            &[],
-            &mut ImplicitWorkspace::default(),
-        )
-        .unwrap();
-        step_error(&state.positions, &exact.positions, &start.positions)
-    };
+    let error =
+        |config: ImplicitConfig| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
     let jacobi: Vec<f64> = [4, 16, 64, 256]
         .map(|k| error(ImplicitConfig::jacobi(k)))
         .to_vec();
@@ -108,12 +128,7 @@ fn jacobi_and_chebyshev_errors_fall_with_iterations_and_chebyshev_is_lower() {
 #[test]
 fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
     let model = ClothBuilder::assignment(8, 8).build().unwrap();
-    let params = StepParams {
-        dt: 5e-3,
-        stiffness: crate::solver::SpringStiffness::uniform(10.0),
-        damping: 1.0,
-        ..StepParams::LAB
-    };
+    let params = assignment_params();
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = LinearWorkspace::default();
     let direct = LinearConfig {
@@ -156,12 +171,7 @@ fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
 #[test]
 fn cg_error_falls_with_iterations_against_the_direct_solve() {
     let model = ClothBuilder::assignment(12, 12).build().unwrap();
-    let params = StepParams {
-        dt: 5e-3,
-        stiffness: crate::solver::SpringStiffness::uniform(10.0),
-        damping: 1.0,
-        ..StepParams::LAB
-    };
+    let params = assignment_params();
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let direct = LinearConfig {
         solver: LinearSolver::Direct,
@@ -207,12 +217,7 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
     // The lab's 4k diagonal diverges here (12 springs per vertex); the
     // per-vertex sum of spring stiffnesses does not.
     let model = ClothBuilder::assignment(12, 12).build().unwrap();
-    let params = StepParams {
-        dt: 5e-3,
-        stiffness: crate::solver::SpringStiffness::uniform(10.0),
-        damping: 1.0,
-        ..StepParams::LAB
-    };
+    let params = assignment_params();
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = ExactWorkspace::default();
     for _ in 0..30 {
@@ -236,19 +241,7 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
         &mut ws,
     )
     .unwrap();
-    let error = |config: ImplicitConfig| {
-        let mut s = start.clone();
-        implicit::step(
-            &model,
-            &mut s,
-            &params,
-            &config,
-            &[],
-            &mut ImplicitWorkspace::default(),
-        )
-        .unwrap();
-        step_error(&s.positions, &exact.positions, &start.positions)
-    };
+    let error = |config: ImplicitConfig| implicit_error(&model, &params, &start, &exact, config);
     let jacobi: Vec<f64> = [8, 64, 512]
         .map(|k| error(ImplicitConfig::jacobi(k)))
         .to_vec();
@@ -264,19 +257,8 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
 fn estimated_rho_accelerates_the_lab_step() {
     let (model, start) = lab_swinging(10);
     let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
-    let error = |config: ImplicitConfig| {
-        let mut state = start.clone();
-        implicit::step(
-            &model,
-            &mut state,
-            &StepParams::LAB,
-            &config,
-            &[],
-            &mut ImplicitWorkspace::default(),
-        )
-        .unwrap();
-        step_error(&state.positions, &exact.positions, &start.positions)
-    };
+    let error =
+        |config: ImplicitConfig| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
     for k in [32, 128] {
         let jacobi = error(ImplicitConfig::jacobi(k));
         let auto = error(ImplicitConfig::chebyshev_auto(k));

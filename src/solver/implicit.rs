@@ -224,7 +224,7 @@ pub fn step(
             }
             Some(kind) => {
                 if kind == Rho::Auto && k == delay {
-                    rho = estimate_rho(&ws.update_norms);
+                    rho = rho_from_update_norms(&ws.update_norms);
                 }
                 omega = match k.checked_sub(delay) {
                     None | Some(0) => 1.0,
@@ -298,9 +298,10 @@ fn objective_gradient(
     }
 }
 
-/// `ρ` from Jacobi update norms: their geometric mean decay over the second
-/// half, clamped to `[0.5, 0.9999]`.
-fn estimate_rho(norms: &[f64]) -> f32 {
+/// `ρ` from successive Jacobi update norms `‖x_{k+1} − x_k‖`: their
+/// geometric mean decay over the second half, clamped to `[0.5, 0.9999]`
+/// (0.9 when there are too few). Used by [`Rho::Auto`].
+pub fn rho_from_update_norms(norms: &[f64]) -> f32 {
     let (lo, hi) = (norms.len() / 2, norms.len().saturating_sub(1));
     if hi <= lo || norms[lo] <= 0.0 || !norms[hi].is_finite() {
         return 0.9;

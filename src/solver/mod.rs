@@ -63,16 +63,6 @@ impl SpringStiffness {
         }
     }
 
-    /// The largest stiffness among the kinds `model` actually has.
-    pub fn max_present(&self, model: &ClothModel) -> f32 {
-        let counts = model.topology().spring_counts();
-        SpringKind::ALL
-            .iter()
-            .filter(|k| counts[**k as usize] > 0)
-            .map(|&k| self.of(k))
-            .fold(0.0, f32::max)
-    }
-
     /// Per-kind values as an array indexed by `SpringKind as usize`.
     #[inline]
     pub fn as_array(&self) -> [f32; 3] {
