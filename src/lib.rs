@@ -201,24 +201,26 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothMethod, ClothMethods,
-    ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
-    DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin, ImplicitSolver,
-    LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, MethodPlugin, PbdPlugin, PbdSolver,
-    SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin, SymplecticSolver,
+    Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothGuard, ClothMethod,
+    ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
+    ClothWorkspace, DivergenceReason, ExactPlugin, ExactSolver, GuardAction, ImplicitPlugin,
+    ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, MethodPlugin,
+    PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
+    SymplecticSolver,
 };
 
 /// Everything a game needs, in one import.
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothParams, ClothSimulation, ClothStats,
-        ClothStatus, ClothSystems, DivergenceReason, ExactPlugin, ExactSolver, ImplicitPlugin,
-        ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, PbdPlugin,
-        PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
-        SymplecticSolver,
+        Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothGuard, ClothParams, ClothSimulation,
+        ClothStats, ClothStatus, ClothSystems, DivergenceReason, ExactPlugin, ExactSolver,
+        GuardAction, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver,
+        MethodChoice, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
+        SymplecticPlugin, SymplecticSolver,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
+    pub use crate::solver::guard::{GuardBounds, GuardPolicy};
     pub use crate::solver::linear::{
         CgConfig, LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian,
     };

@@ -5,6 +5,7 @@ use core::time::Duration;
 use bevy::prelude::*;
 
 use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
+use crate::solver::guard::{DivergenceReason, GuardBounds, GuardMemory, GuardPolicy};
 use crate::solver::{SpringStiffness, StepParams};
 
 /// A simulated cloth: its model (topology, masses, pins) and its state
@@ -28,7 +29,7 @@ use crate::solver::{SpringStiffness, StepParams};
 /// ```
 #[derive(Component, Reflect, Clone, Debug, Default)]
 #[reflect(Component, Default, Debug)]
-#[require(ClothParams, ClothStats, Transform)]
+#[require(ClothParams, ClothStats, ClothGuard, Transform)]
 pub struct Cloth {
     #[reflect(ignore)]
     pub(crate) model: ClothModel,
@@ -37,9 +38,11 @@ pub struct Cloth {
     #[reflect(ignore)]
     pub(crate) last_good: ClothState,
     pub(crate) initialized: bool,
-    /// Set by a step that failed; reported by the guard in `SyncOut`.
+    /// Set by a step the guard rejected; sent as a message in `SyncOut`.
     #[reflect(ignore)]
-    pub(crate) divergence: Option<DivergenceReason>,
+    pub(crate) event: Option<(DivergenceReason, GuardAction)>,
+    /// Halvings the guard currently applies to this cloth's steps.
+    pub(crate) guard_memory: GuardMemory,
 }
 
 impl Cloth {
@@ -89,6 +92,7 @@ impl Cloth {
     /// next fixed step.
     pub fn reset(&mut self) {
         self.initialized = false;
+        self.guard_memory = GuardMemory::default();
     }
 }
 
@@ -158,6 +162,62 @@ impl ClothParams {
     }
 }
 
+/// The divergence guard of one cloth (added with [`Cloth`]): the bounds a
+/// step must keep and what to do when it does not. See
+/// [`guard`](crate::solver::guard).
+///
+/// After every step the guard checks that the state is finite and within
+/// `bounds`. A step that fails is undone and, under
+/// [`GuardPolicy::Retry`] (the default), retried with halved time steps; if
+/// that fails too, the cloth is stopped at its last good state
+/// ([`ClothStatus::Diverged`]). Either way a
+/// [`ClothDiverged`](super::ClothDiverged) message names it.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct ClothGuard {
+    /// What a state must satisfy after a step.
+    pub bounds: GuardBounds,
+    /// What to do with a step that fails.
+    pub policy: GuardPolicy,
+}
+
+impl ClothGuard {
+    /// A guard that stops the cloth at the first failed step.
+    pub fn pause() -> Self {
+        Self {
+            policy: GuardPolicy::Pause,
+            ..default()
+        }
+    }
+
+    /// A guard that retries a failed step with up to `max_halvings` halvings
+    /// of the time step.
+    pub fn retry(max_halvings: u8) -> Self {
+        Self {
+            policy: GuardPolicy::Retry { max_halvings },
+            ..default()
+        }
+    }
+
+    /// This guard with other bounds.
+    pub fn with_bounds(mut self, bounds: GuardBounds) -> Self {
+        self.bounds = bounds;
+        self
+    }
+}
+
+/// What the guard did about a rejected step.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GuardAction {
+    /// The step was retried with smaller time steps and succeeded.
+    Recovered {
+        /// Substeps it took (`2^halvings`).
+        substeps: u32,
+    },
+    /// Every try failed: the cloth is back at its last good state and stopped.
+    Paused,
+}
+
 /// Whether a cloth is being simulated.
 #[derive(Reflect, Clone, Debug, Default, PartialEq)]
 pub enum ClothStatus {
@@ -170,16 +230,6 @@ pub enum ClothStatus {
     /// Stopped by the divergence guard, at its last good state; call
     /// [`ClothStats::resume`] (or [`Cloth::reset`] and resume) to go on.
     Diverged(DivergenceReason),
-}
-
-/// Why the divergence guard stopped a cloth.
-#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DivergenceReason {
-    /// A position or velocity became NaN or infinite.
-    NonFinite,
-    /// The method's linear solve failed (a matrix that is not positive
-    /// definite, or a failed factorisation); the state was left as it was.
-    SolveFailed,
 }
 
 /// What the last step of a cloth did. Updated every fixed step.
@@ -204,6 +254,11 @@ pub struct ClothStats {
     pub energy: f64,
     /// Vertex–collider contacts resolved in the last step.
     pub contacts: u32,
+    /// Substeps the last step took: 1, or more when the guard retried it with
+    /// halved time steps.
+    pub substeps: u32,
+    /// Steps the guard had to retry with halved time steps so far.
+    pub retried_steps: u64,
     /// Whether the cloth is simulated.
     pub status: ClothStatus,
 }

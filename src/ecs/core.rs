@@ -9,15 +9,15 @@ use bevy::utils::Parallel;
 
 use super::reflect::SpringStiffnessReflect;
 use super::{
-    Cloth, ClothColliders, ClothDiverged, ClothMethods, ClothParams, ClothStats, ClothStatus,
-    ClothSystems, DivergenceReason,
+    Cloth, ClothColliders, ClothDiverged, ClothGuard, ClothMethods, ClothParams, ClothStats,
+    ClothStatus, ClothSystems, GuardAction,
 };
 use crate::model::ClothState;
 use crate::solver;
 
 /// Registers the cloth components and messages, configures
 /// [`ClothSystems`] in the schedule, places new cloths, moves pinned vertices
-/// and runs the divergence guard. Every method plugin adds it if missing.
+/// and sends the divergence guard's messages. Every method plugin adds it if missing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ClothCorePlugin {
     schedule: Interned<dyn ScheduleLabel>,
@@ -44,6 +44,7 @@ impl Plugin for ClothCorePlugin {
         app.register_type::<Cloth>()
             .register_type::<ClothParams>()
             .register_type::<ClothStats>()
+            .register_type::<ClothGuard>()
             .register_type::<SpringStiffnessReflect>()
             .init_resource::<ClothMethods>()
             .init_resource::<ClothSimulation>()
@@ -158,12 +159,21 @@ fn place_and_pin(
     });
 }
 
-/// The divergence guard and the after-step statistics: a cloth whose state
-/// went non-finite gets its last good state back, is stopped, and a
-/// [`ClothDiverged`] message names it.
+/// The divergence guard's second half and the after-step statistics.
+///
+/// The step systems check each step (see [`ClothGuard`]); this checks the
+/// state again after collision, which can move vertices too (a failure here
+/// restores the state from before the step and stops the cloth), records
+/// stretch and energy, and sends the [`ClothDiverged`] messages.
 fn guard_and_measure(
     time: Res<Time>,
-    mut cloths: Query<(Entity, &mut Cloth, &ClothParams, &mut ClothStats)>,
+    mut cloths: Query<(
+        Entity,
+        &mut Cloth,
+        &ClothParams,
+        &ClothGuard,
+        &mut ClothStats,
+    )>,
     mut diverged: Local<Parallel<Vec<ClothDiverged>>>,
     mut messages: MessageWriter<ClothDiverged>,
 ) {
@@ -173,41 +183,43 @@ fn guard_and_measure(
     }
     cloths
         .par_iter_mut()
-        .for_each(|(entity, mut cloth, params, mut stats)| {
-            if let Some(reason) = cloth.divergence.take() {
+        .for_each(|(entity, mut cloth, params, guard, mut stats)| {
+            let cloth = &mut *cloth;
+            if let Some((reason, action)) = cloth.event.take() {
                 diverged.borrow_local_mut().push(ClothDiverged {
                     entity,
                     method: stats.method,
                     reason,
+                    action,
                     step: stats.steps,
                 });
-                return;
             }
             if !cloth.initialized || !stats.is_running() {
                 return;
             }
             let params = params.step_params(dt);
-            let stretch = solver::max_stretch(&cloth.model, &cloth.state.positions);
-            let energy = solver::energy(&cloth.model, &cloth.state, &params);
-            if stretch.is_finite() && energy.is_finite() && cloth.state.is_finite() {
-                stats.max_stretch = stretch;
-                stats.energy = energy;
-                return;
+            match guard.bounds.check(&cloth.model, &cloth.state, &params) {
+                Ok(()) => {
+                    stats.max_stretch = solver::max_stretch(&cloth.model, &cloth.state.positions);
+                    stats.energy = solver::energy(&cloth.model, &cloth.state, &params);
+                }
+                Err(reason) => {
+                    cloth.state.copy_from(&cloth.last_good);
+                    stats.status = ClothStatus::Diverged(reason);
+                    warn!(
+                        "cloth {entity} diverged after collision under method '{}' at step {}: \
+                         {reason:?}; restored its last good state and stopped it",
+                        stats.method, stats.steps
+                    );
+                    diverged.borrow_local_mut().push(ClothDiverged {
+                        entity,
+                        method: stats.method,
+                        reason,
+                        action: GuardAction::Paused,
+                        step: stats.steps,
+                    });
+                }
             }
-            let cloth = &mut *cloth;
-            cloth.state.copy_from(&cloth.last_good);
-            let reason = DivergenceReason::NonFinite;
-            stats.status = ClothStatus::Diverged(reason);
-            warn!(
-                "cloth {entity} diverged under method '{}' at step {}: {reason:?}; restored its last good state and stopped it",
-                stats.method, stats.steps
-            );
-            diverged.borrow_local_mut().push(ClothDiverged {
-                entity,
-                method: stats.method,
-                reason,
-                step: stats.steps,
-            });
         });
     let mut found: Vec<ClothDiverged> = diverged.drain().collect();
     found.sort_by_key(|d| d.entity);

@@ -12,10 +12,12 @@ use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
 
 use super::{
-    Cloth, ClothColliders, ClothParams, ClothStats, ClothStatus, ClothSystems, DivergenceReason,
+    Cloth, ClothColliders, ClothGuard, ClothParams, ClothStats, ClothStatus, ClothSystems,
+    GuardAction,
 };
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::guard::{GuardError, guarded_step};
 use crate::solver::{StepError, StepParams, StepReport};
 
 /// A simulation method: a component whose presence on a [`Cloth`] entity
@@ -183,6 +185,7 @@ type StepData<M> = (
     Entity,
     &'static mut Cloth,
     &'static ClothParams,
+    &'static ClothGuard,
     &'static M,
     &'static mut ClothWorkspace<<M as ClothMethod>::Workspace>,
     &'static mut ClothStats,
@@ -198,14 +201,12 @@ fn step_cloths<M: ClothMethod>(
     if dt <= 0.0 {
         return;
     }
-    cloths
-        .par_iter_mut()
-        .for_each(|(entity, mut cloth, params, method, mut ws, mut stats)| {
+    cloths.par_iter_mut().for_each(
+        |(entity, mut cloth, params, guard, method, mut ws, mut stats)| {
             if !cloth.initialized || matches!(stats.status, ClothStatus::Diverged(_)) {
                 return;
             }
             let cloth = &mut *cloth;
-            cloth.last_good.copy_from(&cloth.state);
             let particle_radius = params.particle_radius;
             let params = params.step_params(dt);
             let ws = &mut *ws;
@@ -215,37 +216,52 @@ fn step_cloths<M: ClothMethod>(
                     radius: s.radius + particle_radius,
                     ..*s
                 }));
+            let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
+            let model = &cloth.model;
             let start = Instant::now();
-            let result = method.step(
-                &cloth.model,
+            let result = guarded_step(
+                &guard.bounds,
+                guard.policy,
+                &mut cloth.guard_memory,
+                model,
                 &mut cloth.state,
+                &mut cloth.last_good,
                 &params,
-                &ws.penalty,
-                &mut ws.solver,
+                |state, p| method.step(model, state, p, penalty, solver_ws),
             );
             let elapsed = start.elapsed();
             stats.method = method.name();
             match result {
-                Ok(report) => {
+                Ok(done) => {
                     stats.steps += 1;
                     stats.step_time = elapsed;
-                    stats.iterations = report.iterations;
-                    stats.residual = report.residual;
+                    stats.iterations = done.report.iterations;
+                    stats.residual = done.report.residual;
+                    stats.substeps = done.substeps;
+                    if let Some(reason) = done.retried_because {
+                        stats.retried_steps += 1;
+                        cloth.event = Some((
+                            reason,
+                            GuardAction::Recovered {
+                                substeps: done.substeps,
+                            },
+                        ));
+                    }
                     if !stats.is_running() {
                         stats.status = ClothStatus::Running;
                     }
                 }
-                Err(StepError::Solve(error)) => {
-                    // The state is untouched: the cloth stops where it was.
+                Err(GuardError::Diverged { reason, halvings }) => {
                     warn!(
-                        "cloth {entity} stopped: the '{}' solve failed at step {}: {error}",
+                        "cloth {entity} stopped: the '{}' step diverged at step {} ({reason:?}, \
+                         {halvings} halvings tried); restored its last good state",
                         method.name(),
                         stats.steps
                     );
-                    stats.status = ClothStatus::Diverged(DivergenceReason::SolveFailed);
-                    cloth.divergence = Some(DivergenceReason::SolveFailed);
+                    stats.status = ClothStatus::Diverged(reason);
+                    cloth.event = Some((reason, GuardAction::Paused));
                 }
-                Err(error) => {
+                Err(GuardError::Refused(error)) => {
                     let text = error.to_string();
                     if stats.status != ClothStatus::Invalid(text.clone()) {
                         warn!("cloth {entity} ('{}') skipped: {text}", method.name());
@@ -253,5 +269,6 @@ fn step_cloths<M: ClothMethod>(
                     }
                 }
             }
-        });
+        },
+    );
 }

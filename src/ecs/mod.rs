@@ -18,13 +18,14 @@ mod schedule;
 
 use bevy::prelude::*;
 
+pub use crate::solver::guard::DivergenceReason;
 pub use assignment::{
     ExactPlugin, ExactSolver, LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin,
     SymplecticSolver,
 };
 pub use choice::MethodChoice;
 pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
-pub use components::{Cloth, ClothParams, ClothStats, ClothStatus, DivergenceReason};
+pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use implicit::{Chebyshev, ImplicitPlugin, ImplicitSolver};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
@@ -35,9 +36,11 @@ pub use reflect::{
 };
 pub use schedule::ClothSystems;
 
-/// Sent when the divergence guard stops a cloth: its state went non-finite,
-/// so it was restored to its last good state and is no longer stepped
-/// (see [`ClothStatus::Diverged`]).
+/// Sent when the divergence guard rejects a cloth's step (see
+/// [`ClothGuard`]): the step went non-finite, left the guard's bounds, or its
+/// solve failed. `action` says whether a retry with smaller steps rescued
+/// it or the cloth was stopped at its last good state
+/// ([`ClothStatus::Diverged`]).
 #[derive(Message, Clone, Copy, Debug, PartialEq)]
 pub struct ClothDiverged {
     /// The cloth entity.
@@ -46,6 +49,8 @@ pub struct ClothDiverged {
     pub method: &'static str,
     /// What the guard saw.
     pub reason: DivergenceReason,
+    /// What it did.
+    pub action: GuardAction,
     /// Completed steps when it happened.
     pub step: u64,
 }

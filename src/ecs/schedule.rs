@@ -11,12 +11,15 @@ use bevy::prelude::*;
 /// 2. [`SyncIn`](Self::SyncIn): new cloths are placed at their entity's
 ///    transform; pinned vertices move to where their entity puts them.
 /// 3. [`Step`](Self::Step): each method plugin advances the cloths that carry
-///    its solver component (the last good state is kept first).
+///    its solver component under the divergence guard
+///    ([`ClothGuard`](crate::ecs::ClothGuard)): the state before the step is
+///    kept, and a step that fails is undone and retried with halved time
+///    steps, or the cloth is stopped.
 /// 4. [`Collide`](Self::Collide): colliders act on the stepped cloths.
-/// 5. [`SyncOut`](Self::SyncOut): the divergence guard checks every cloth
-///    (restoring and pausing one that went non-finite, and sending
-///    [`ClothDiverged`](crate::ecs::ClothDiverged)), and [`ClothStats`](crate::ecs::ClothStats)
-///    gets max stretch and energy.
+/// 5. [`SyncOut`](Self::SyncOut): the guard checks every cloth again after
+///    collision (restoring and pausing one that failed), sends
+///    [`ClothDiverged`](crate::ecs::ClothDiverged) for every rejected step,
+///    and [`ClothStats`](crate::ecs::ClothStats) gets max stretch and energy.
 /// 6. [`Last`](Self::Last): empty, for user systems that read the result.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ClothSystems {

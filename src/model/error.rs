@@ -132,4 +132,7 @@ pub enum ParamError {
     /// A collider radius is negative or not finite.
     #[error("collider radius {0} must be finite and non-negative")]
     Radius(f32),
+    /// A divergence-guard bound is NaN, or a stretch bound is not positive.
+    #[error("guard bound {0} must be a positive number")]
+    Bound(f64),
 }

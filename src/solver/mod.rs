@@ -18,10 +18,14 @@
 //! (linearly implicit), in the gradient and diagonal (implicit Jacobi), or
 //! as explicit forces (symplectic, and PBD's velocity prediction).
 //!
+//! The divergence guard ([`guard`]) checks a step and retries it with
+//! halved time steps when it fails.
+//!
 //! Shared measures — [`objective`], [`gradient`], [`max_stretch`],
 //! [`energy`] — are here.
 
 pub mod exact;
+pub mod guard;
 pub mod implicit;
 pub mod linear;
 pub mod pbd;

@@ -55,12 +55,16 @@ fn above_its_step_limit_symplectic_euler_is_caught_and_linearly_implicit_is_not(
     let mut app = assignment_app(0.05);
     app.init_resource::<Diverged>()
         .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
-    let explicit = spawn_assignment(&mut app, 10, 10, SymplecticSolver);
+    let explicit = spawn_assignment(&mut app, 10, 10, (SymplecticSolver, ClothGuard::pause()));
     let cg = spawn_assignment(&mut app, 10, 10, LinearImplicitSolver::default());
     let direct = spawn_assignment(&mut app, 10, 10, LinearImplicitSolver::direct());
     run_steps(&mut app, 200);
     let s = stats(&app, explicit);
-    assert_eq!(s.status, ClothStatus::Diverged(DivergenceReason::NonFinite));
+    assert!(
+        matches!(s.status, ClothStatus::Diverged(_)),
+        "{:?}",
+        s.status
+    );
     let seen = &app.world().resource::<Diverged>().0;
     assert_eq!(seen.len(), 1);
     assert_eq!((seen[0].entity, seen[0].method), (explicit, "symplectic"));

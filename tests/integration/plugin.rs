@@ -207,27 +207,66 @@ fn a_diverging_cloth_is_stopped_restored_and_reported() {
     // Chebyshev with rho far above the Jacobi iteration's spectral radius at
     // k = 1e6 diverges within a few dozen steps.
     let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.9999));
-    app.world_mut()
-        .entity_mut(cloth)
-        .insert(ClothParams::default().with_stiffness(1e6));
+    app.world_mut().entity_mut(cloth).insert((
+        ClothParams::default().with_stiffness(1e6),
+        ClothGuard::pause(),
+    ));
     let calm = spawn_lab(&mut app, ImplicitSolver::default());
     run_steps(&mut app, 60);
     let s = stats(&app, cloth);
-    assert_eq!(s.status, ClothStatus::Diverged(DivergenceReason::NonFinite));
+    // The stretch bound sees the blow-up before it reaches infinity.
+    assert_eq!(s.status, ClothStatus::Diverged(DivergenceReason::Stretch));
     let seen = &app.world().resource::<Diverged>().0;
     assert_eq!(seen.len(), 1, "reported once");
     assert_eq!(seen[0].entity, cloth);
     assert_eq!(seen[0].method, "chebyshev");
+    assert_eq!(seen[0].action, GuardAction::Paused);
     assert_eq!(seen[0].step, s.steps);
-    // Restored to its last good (finite) state and no longer stepped.
+    // Restored to its last good state, which is within the bound, and no
+    // longer stepped.
     let x = positions(&app, cloth);
     assert!(x.iter().all(|p| p.is_finite()));
+    let model = app.world().get::<Cloth>(cloth).unwrap().model().clone();
+    assert!(bevy_cloth::solver::max_stretch(&model, &x) <= 10.0);
     run_steps(&mut app, 5);
     assert_eq!(stats(&app, cloth).steps, s.steps);
     assert_eq!(positions(&app, cloth)[100], x[100]);
     // The other cloth is unaffected.
     assert_eq!(stats(&app, calm).steps, 65);
     assert!(stats(&app, calm).is_running());
+}
+
+#[test]
+fn past_the_explicit_limit_the_guard_retries_with_halved_steps() {
+    // The lab's dt is four times symplectic Euler's limit on the lab cloth
+    // (about 0.0085 s): under the default policy every step is undone and
+    // retried with halved steps, and the cloth hangs as it should.
+    let mut app = app();
+    app.init_resource::<Diverged>()
+        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+    let cloth = spawn_lab(&mut app, SymplecticSolver);
+    let paused = spawn_lab(&mut app, SymplecticSolver);
+    app.world_mut()
+        .entity_mut(paused)
+        .insert(ClothGuard::pause());
+    run_steps(&mut app, 100);
+    let s = stats(&app, cloth);
+    assert!(s.is_running(), "{:?}", s.status);
+    assert_eq!(s.steps, 100);
+    assert!(s.retried_steps > 0 && s.substeps >= 4, "{s:?}");
+    assert!(s.max_stretch < 0.5, "{}", s.max_stretch);
+    let seen = &app.world().resource::<Diverged>().0;
+    let recovered = seen.iter().filter(|d| d.entity == cloth).count() as u64;
+    assert_eq!(recovered, s.retried_steps);
+    assert!(seen.iter().filter(|d| d.entity == cloth).all(|d| matches!(
+        d.action,
+        GuardAction::Recovered { substeps } if substeps >= 4
+    )));
+    // The same cloth under the pause policy stops.
+    assert!(matches!(
+        stats(&app, paused).status,
+        ClothStatus::Diverged(_)
+    ));
 }
 
 #[test]

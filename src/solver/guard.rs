@@ -1,0 +1,440 @@
+//! The divergence guard: a cheap check after each step, and a policy for a
+//! step that fails it.
+//!
+//! A step *fails* when the method returns a solve error, when a position or
+//! velocity becomes NaN or infinite, or when the cloth leaves the bounds of a
+//! [`GuardBounds`]: a spring stretched beyond `max_stretch` times its rest
+//! length, or a total energy beyond `max_energy`. The bounds catch a blow-up
+//! while the state is still finite, so the state the guard keeps is never
+//! absurd.
+//!
+//! On a failed step [`guarded_step`] restores the state from before the step
+//! and applies the [`GuardPolicy`]: give up at once, or retry the step as 2,
+//! 4, 8, … substeps of `dt/2`, `dt/4`, `dt/8`, … (each substep checked) up to
+//! a limit. Smaller steps rescue the explicit method (stable for
+//! `dt < 2/ω_max`), a fixed-ρ Chebyshev iteration (its ρ is nearer the true
+//! one when `dt²k/m` is smaller) and a linear system that lost definiteness
+//! (`M − h²K` is positive definite for small `h`). The ECS runs this for
+//! every cloth (see [`ClothGuard`](crate::ecs::ClothGuard)).
+
+use bevy::reflect::Reflect;
+
+use super::{StepError, StepParams, StepReport, energy, max_stretch};
+use crate::model::{ClothModel, ClothState, ParamError};
+
+/// Why the guard rejected a step.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DivergenceReason {
+    /// A position or velocity became NaN or infinite.
+    NonFinite,
+    /// The method's linear solve failed (a matrix that is not positive
+    /// definite, or a failed factorisation); the state was left as it was.
+    SolveFailed,
+    /// A spring became longer than [`GuardBounds::max_stretch`] allows.
+    Stretch,
+    /// The total energy exceeded [`GuardBounds::max_energy`].
+    Energy,
+}
+
+/// What a state must satisfy after a step, besides being finite.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+pub struct GuardBounds {
+    /// Largest allowed relative elongation `(l − L)/L` of any spring; `None`
+    /// checks none. Default `10`: no cloth stretches to eleven times its rest
+    /// length, and an unstable step crosses it long before its state is
+    /// absurd, so the state the guard keeps is still usable. A pin teleported
+    /// more than ten spring lengths away crosses it too: raise or clear the
+    /// bound for a cloth whose pins jump.
+    pub max_stretch: Option<f32>,
+    /// Largest allowed total energy (see [`energy`](super::energy)); `None`
+    /// (the default) checks none. It depends on the scene, so only its
+    /// author can set it.
+    pub max_energy: Option<f64>,
+}
+
+impl Default for GuardBounds {
+    fn default() -> Self {
+        Self {
+            max_stretch: Some(10.0),
+            max_energy: None,
+        }
+    }
+}
+
+impl GuardBounds {
+    /// No bounds: only non-finite values and solve failures are caught.
+    pub const FINITE_ONLY: Self = Self {
+        max_stretch: None,
+        max_energy: None,
+    };
+
+    /// Checks the bounds themselves (positive, not NaN).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if let Some(s) = self.max_stretch
+            && (s.is_nan() || s <= 0.0)
+        {
+            return Err(ParamError::Bound(f64::from(s)));
+        }
+        if let Some(e) = self.max_energy
+            && e.is_nan()
+        {
+            return Err(ParamError::Bound(e));
+        }
+        Ok(())
+    }
+
+    /// Checks `state` after a step: finite, and within the bounds that are
+    /// set. Costs one pass over the vertices, plus one over the springs per
+    /// bound that is set.
+    pub fn check(
+        &self,
+        model: &ClothModel,
+        state: &ClothState,
+        params: &StepParams,
+    ) -> Result<(), DivergenceReason> {
+        if !state.is_finite() {
+            return Err(DivergenceReason::NonFinite);
+        }
+        if let Some(bound) = self.max_stretch {
+            let stretch = max_stretch(model, &state.positions);
+            // NaN cannot happen on finite positions, but fail closed.
+            if stretch.is_nan() || stretch > bound {
+                return Err(DivergenceReason::Stretch);
+            }
+        }
+        if let Some(bound) = self.max_energy {
+            let e = energy(model, state, params);
+            if e.is_nan() || e > bound {
+                return Err(DivergenceReason::Energy);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What to do with a step that fails the guard.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GuardPolicy {
+    /// Restore the state from before the step and stop.
+    Pause,
+    /// Restore the state and retry the step as `2^h` substeps of `dt/2^h`,
+    /// for `h = 1 ..= max_halvings`; stop if the last try fails too.
+    Retry {
+        /// Most halvings tried (each doubles the work of the retry).
+        max_halvings: u8,
+    },
+}
+
+impl Default for GuardPolicy {
+    /// Retry with up to 4 halvings (16 substeps).
+    fn default() -> Self {
+        Self::Retry { max_halvings: 4 }
+    }
+}
+
+/// A step the guard accepted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GuardedStep {
+    /// The report of the last (sub)step.
+    pub report: StepReport,
+    /// Substeps the step took: 1, or `2^h` after `h` halvings.
+    pub substeps: u32,
+    /// Why the full step failed, when it was retried.
+    pub retried_because: Option<DivergenceReason>,
+}
+
+/// Why [`guarded_step`] gave up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GuardError {
+    /// The step was refused for its input (parameters, state size); the state
+    /// is untouched. Not a divergence: it is not retried.
+    Refused(StepError),
+    /// Every try failed; the state is the one from before the step.
+    Diverged {
+        /// Why the first try failed.
+        reason: DivergenceReason,
+        /// Halvings tried after it.
+        halvings: u8,
+    },
+}
+
+/// What the guard remembers of a cloth between steps: how many halvings its
+/// steps currently take.
+///
+/// A step that needed `h` halvings is followed by steps of `h + 1` halvings
+/// (the first count that passes is at the edge of stability; one more gives
+/// a margin), up to the policy's limit. After [`RELAX_AFTER`] steps in a row
+/// pass, one halving is dropped again, so a cloth that was hit hard once goes
+/// back to full steps.
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GuardMemory {
+    /// Halvings the next step starts with.
+    pub halvings: u8,
+    /// Steps in a row that passed at the current level.
+    pub calm_steps: u32,
+}
+
+/// Steps in a row that must pass before [`GuardMemory`] drops one halving.
+pub const RELAX_AFTER: u32 = 600;
+
+/// Runs `step` (one step of some method over `params.dt`) under the guard.
+///
+/// `backup` is scratch for the state before the step (reused, so no
+/// allocation once sized). On failure `state` is restored from it; see the
+/// [module docs](self). `memory` carries the number of halvings from step to
+/// step (see [`GuardMemory`]).
+#[allow(clippy::too_many_arguments)]
+pub fn guarded_step<F>(
+    bounds: &GuardBounds,
+    policy: GuardPolicy,
+    memory: &mut GuardMemory,
+    model: &ClothModel,
+    state: &mut ClothState,
+    backup: &mut ClothState,
+    params: &StepParams,
+    mut step: F,
+) -> Result<GuardedStep, GuardError>
+where
+    F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
+{
+    bounds
+        .validate()
+        .map_err(|e| GuardError::Refused(e.into()))?;
+    let max_halvings = match policy {
+        GuardPolicy::Pause => 0,
+        GuardPolicy::Retry { max_halvings } => max_halvings.min(20),
+    };
+    let start = memory.halvings.min(max_halvings);
+    backup.copy_from(state);
+    let first = match try_level(bounds, model, state, params, start, &mut step) {
+        Ok(report) => {
+            memory.halvings = start;
+            memory.calm_steps += 1;
+            if memory.calm_steps >= RELAX_AFTER && memory.halvings > 0 {
+                memory.halvings -= 1;
+                memory.calm_steps = 0;
+            }
+            return Ok(GuardedStep {
+                report,
+                substeps: 1 << start,
+                retried_because: None,
+            });
+        }
+        Err(Failure::Refused(e)) => {
+            state.copy_from(backup);
+            return Err(GuardError::Refused(e));
+        }
+        Err(Failure::Diverged(reason)) => reason,
+    };
+    for h in start + 1..=max_halvings {
+        state.copy_from(backup);
+        if let Ok(report) = try_level(bounds, model, state, params, h, &mut step) {
+            memory.halvings = (h + 1).min(max_halvings);
+            memory.calm_steps = 0;
+            return Ok(GuardedStep {
+                report,
+                substeps: 1 << h,
+                retried_because: Some(first),
+            });
+        }
+    }
+    state.copy_from(backup);
+    Err(GuardError::Diverged {
+        reason: first,
+        halvings: max_halvings.saturating_sub(start),
+    })
+}
+
+/// `2^halvings` substeps of `dt / 2^halvings`.
+fn try_level<F>(
+    bounds: &GuardBounds,
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    halvings: u8,
+    step: &mut F,
+) -> Result<StepReport, Failure>
+where
+    F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
+{
+    let substeps = 1u32 << halvings;
+    let sub = StepParams {
+        dt: params.dt / f64::from(substeps),
+        ..*params
+    };
+    try_substeps(bounds, model, state, &sub, substeps, step)
+}
+
+enum Failure {
+    Refused(StepError),
+    Diverged(DivergenceReason),
+}
+
+fn try_substeps<F>(
+    bounds: &GuardBounds,
+    model: &ClothModel,
+    state: &mut ClothState,
+    params: &StepParams,
+    substeps: u32,
+    step: &mut F,
+) -> Result<StepReport, Failure>
+where
+    F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
+{
+    let mut last = StepReport::default();
+    for _ in 0..substeps {
+        last = match step(state, params) {
+            Ok(report) => report,
+            Err(StepError::Solve(_)) => {
+                return Err(Failure::Diverged(DivergenceReason::SolveFailed));
+            }
+            Err(e) => return Err(Failure::Refused(e)),
+        };
+        bounds
+            .check(model, state, params)
+            .map_err(Failure::Diverged)?;
+    }
+    Ok(last)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ClothBuilder;
+    use crate::solver::symplectic::{self, SymplecticWorkspace};
+    use bevy::math::Affine3A;
+
+    fn lab() -> (ClothModel, ClothState) {
+        let model = ClothBuilder::lab().build().unwrap();
+        let state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        (model, state)
+    }
+
+    #[test]
+    fn an_unstable_explicit_step_is_caught_before_it_is_absurd_and_restored() {
+        let (model, mut state) = lab();
+        let mut backup = ClothState::default();
+        let mut ws = SymplecticWorkspace::default();
+        let params = StepParams::LAB; // far past the explicit limit
+        let mut caught = None;
+        for n in 0..200 {
+            let before = state.clone();
+            let r = guarded_step(
+                &GuardBounds::default(),
+                GuardPolicy::Pause,
+                &mut GuardMemory::default(),
+                &model,
+                &mut state,
+                &mut backup,
+                &params,
+                |s, p| symplectic::step(&model, s, p, &[], &mut ws),
+            );
+            if let Err(e) = r {
+                assert_eq!(state, before, "restored");
+                caught = Some((n, e));
+                break;
+            }
+        }
+        let (n, e) = caught.expect("symplectic Euler at the lab's dt diverges");
+        assert_eq!(
+            e,
+            GuardError::Diverged {
+                reason: DivergenceReason::Stretch,
+                halvings: 0
+            }
+        );
+        assert!(n > 0, "the first steps from rest are fine");
+        assert!(max_stretch(&model, &state.positions) <= 10.0);
+    }
+
+    #[test]
+    fn halving_rescues_an_explicit_step_just_past_its_limit() {
+        let (model, mut state) = lab();
+        let mut backup = ClothState::default();
+        let mut ws = SymplecticWorkspace::default();
+        // The lab cloth's explicit limit is about 2/sqrt(8·8000) ≈ 0.008 s.
+        let params = StepParams {
+            dt: 0.012,
+            ..StepParams::LAB
+        };
+        let mut substeps = Vec::new();
+        let mut memory = GuardMemory::default();
+        for _ in 0..300 {
+            let r = guarded_step(
+                &GuardBounds::default(),
+                GuardPolicy::default(),
+                &mut memory,
+                &model,
+                &mut state,
+                &mut backup,
+                &params,
+                |s, p| symplectic::step(&model, s, p, &[], &mut ws),
+            )
+            .expect("halving keeps it stable");
+            substeps.push(r.substeps);
+        }
+        assert!(substeps.iter().any(|&s| s > 1), "some steps were retried");
+        // After the first retry the guard keeps a margin: later steps start
+        // with the extra halving and need no retry.
+        assert_eq!(memory.halvings, 2);
+        assert_eq!(substeps.last(), Some(&4));
+        assert!(state.is_finite());
+        assert!(max_stretch(&model, &state.positions) < 1.0);
+    }
+
+    #[test]
+    fn bad_input_is_refused_not_retried() {
+        let (model, mut state) = lab();
+        let mut backup = ClothState::default();
+        let mut calls = 0;
+        let params = StepParams {
+            dt: -1.0,
+            ..StepParams::LAB
+        };
+        let mut ws = SymplecticWorkspace::default();
+        let r = guarded_step(
+            &GuardBounds::default(),
+            GuardPolicy::default(),
+            &mut GuardMemory::default(),
+            &model,
+            &mut state,
+            &mut backup,
+            &params,
+            |s, p| {
+                calls += 1;
+                symplectic::step(&model, s, p, &[], &mut ws)
+            },
+        );
+        assert!(matches!(
+            r,
+            Err(GuardError::Refused(StepError::Params(
+                ParamError::TimeStep(_)
+            )))
+        ));
+        assert_eq!(calls, 1);
+        let bad = GuardBounds {
+            max_stretch: Some(f32::NAN),
+            max_energy: None,
+        };
+        assert!(bad.validate().is_err());
+    }
+
+    #[test]
+    fn the_energy_bound_trips_when_set() {
+        let (model, state) = lab();
+        let params = StepParams::LAB;
+        let e = energy(&model, &state, &params);
+        let tight = GuardBounds {
+            max_stretch: None,
+            max_energy: Some(e - 1.0),
+        };
+        assert_eq!(
+            tight.check(&model, &state, &params),
+            Err(DivergenceReason::Energy)
+        );
+        assert_eq!(
+            GuardBounds::FINITE_ONLY.check(&model, &state, &params),
+            Ok(())
+        );
+    }
+}
