@@ -192,6 +192,7 @@ pub mod render;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod solver;
+pub mod stability;
 #[cfg(feature = "egui")]
 pub mod ui;
 

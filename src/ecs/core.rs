@@ -198,7 +198,10 @@ fn guard_and_measure(
                 return;
             }
             let params = params.step_params(dt);
-            match guard.bounds.check(&cloth.model, &cloth.state, &params) {
+            match guard
+                .bounds
+                .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
+            {
                 Ok(()) => {
                     stats.max_stretch = solver::max_stretch(&cloth.model, &cloth.state.positions);
                     stats.energy = solver::energy(&cloth.model, &cloth.state, &params);

@@ -42,9 +42,11 @@ pub struct GuardBounds {
     /// Largest allowed relative elongation `(l − L)/L` of any spring; `None`
     /// checks none. Default `10`: no cloth stretches to eleven times its rest
     /// length, and an unstable step crosses it long before its state is
-    /// absurd, so the state the guard keeps is still usable. A pin teleported
-    /// more than ten spring lengths away crosses it too: raise or clear the
-    /// bound for a cloth whose pins jump.
+    /// absurd, so the state the guard keeps is still usable. A step that
+    /// ends beyond the bound passes if it reduced the largest stretch (a pin
+    /// teleported far away leaves springs stretched before any step runs).
+    /// A scene whose physics stretches springs further than this (huge loads
+    /// on soft springs) needs a larger bound.
     pub max_stretch: Option<f32>,
     /// Largest allowed total energy (see [`energy`](super::energy)); `None`
     /// (the default) checks none. It depends on the scene, so only its
@@ -83,13 +85,16 @@ impl GuardBounds {
         Ok(())
     }
 
-    /// Checks `state` after a step: finite, and within the bounds that are
-    /// set. Costs one pass over the vertices, plus one over the springs per
-    /// bound that is set.
+    /// Checks `state` after a step from `before`: finite, and within the
+    /// bounds that are set. A stretch beyond the bound passes if it is no
+    /// larger than before the step: the cloth is recovering from something
+    /// done to it (a pin teleported far away), not blowing up. Costs one pass
+    /// over the vertices, plus one over the springs per bound that is set.
     pub fn check(
         &self,
         model: &ClothModel,
         state: &ClothState,
+        before: &ClothState,
         params: &StepParams,
     ) -> Result<(), DivergenceReason> {
         if !state.is_finite() {
@@ -98,7 +103,14 @@ impl GuardBounds {
         if let Some(bound) = self.max_stretch {
             let stretch = max_stretch(model, &state.positions);
             // NaN cannot happen on finite positions, but fail closed.
-            if stretch.is_nan() || stretch > bound {
+            // Fails if it grew while beyond the bound (`before` passed the
+            // guard, so it is finite).
+            if stretch.is_nan()
+                || (stretch > bound
+                    && max_stretch(model, &before.positions)
+                        .partial_cmp(&stretch)
+                        .is_some_and(|o| o.is_lt()))
+            {
                 return Err(DivergenceReason::Stretch);
             }
         }
@@ -206,7 +218,7 @@ where
     };
     let start = memory.halvings.min(max_halvings);
     backup.copy_from(state);
-    let first = match try_level(bounds, model, state, params, start, &mut step) {
+    let first = match try_level(bounds, model, state, backup, params, start, &mut step) {
         Ok(report) => {
             memory.halvings = start;
             memory.calm_steps += 1;
@@ -228,7 +240,7 @@ where
     };
     for h in start + 1..=max_halvings {
         state.copy_from(backup);
-        if let Ok(report) = try_level(bounds, model, state, params, h, &mut step) {
+        if let Ok(report) = try_level(bounds, model, state, backup, params, h, &mut step) {
             memory.halvings = (h + 1).min(max_halvings);
             memory.calm_steps = 0;
             return Ok(GuardedStep {
@@ -250,6 +262,7 @@ fn try_level<F>(
     bounds: &GuardBounds,
     model: &ClothModel,
     state: &mut ClothState,
+    before: &ClothState,
     params: &StepParams,
     halvings: u8,
     step: &mut F,
@@ -262,7 +275,7 @@ where
         dt: params.dt / f64::from(substeps),
         ..*params
     };
-    try_substeps(bounds, model, state, &sub, substeps, step)
+    try_substeps(bounds, model, state, before, &sub, substeps, step)
 }
 
 enum Failure {
@@ -274,6 +287,7 @@ fn try_substeps<F>(
     bounds: &GuardBounds,
     model: &ClothModel,
     state: &mut ClothState,
+    before: &ClothState,
     params: &StepParams,
     substeps: u32,
     step: &mut F,
@@ -291,7 +305,7 @@ where
             Err(e) => return Err(Failure::Refused(e)),
         };
         bounds
-            .check(model, state, params)
+            .check(model, state, before, params)
             .map_err(Failure::Diverged)?;
     }
     Ok(last)
@@ -429,11 +443,11 @@ mod tests {
             max_energy: Some(e - 1.0),
         };
         assert_eq!(
-            tight.check(&model, &state, &params),
+            tight.check(&model, &state, &state, &params),
             Err(DivergenceReason::Energy)
         );
         assert_eq!(
-            GuardBounds::FINITE_ONLY.check(&model, &state, &params),
+            GuardBounds::FINITE_ONLY.check(&model, &state, &state, &params),
             Ok(())
         );
     }

@@ -24,6 +24,7 @@
 //! Shared measures — [`objective`], [`gradient`], [`max_stretch`],
 //! [`energy`] — are here.
 
+pub mod any;
 pub mod exact;
 pub mod guard;
 pub mod implicit;

@@ -7,3 +7,4 @@ mod common;
 mod drag;
 mod plugin;
 mod scenes;
+mod stability;
