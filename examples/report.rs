@@ -2,16 +2,22 @@
 //! charts, every method measured against the exact implicit-Euler step.
 //!
 //! ```text
-//! cargo run --release --example report [-- --out docs/report] [--tiny]
+//! cargo run --release --example report [-- --out docs/report] [--tiny] [--stability]
 //! ```
+//!
+//! `--stability` writes the stability map (`stability.md`, `stability.svg`)
+//! instead: every method × stiffness × time step, resolutions and the
+//! extreme cases, classified against the exact method.
 
 use std::process::ExitCode;
 
+use bevy_cloth::report::stability::{self, StabilityConfig};
 use bevy_cloth::report::{ReportConfig, run};
 
 fn main() -> ExitCode {
     let mut out = String::from("docs/report");
     let mut tiny = false;
+    let mut stability_map = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -23,11 +29,29 @@ fn main() -> ExitCode {
                 }
             },
             "--tiny" => tiny = true,
+            "--stability" => stability_map = true,
             _ => {
-                eprintln!("usage: report [--out FOLDER] [--tiny]");
+                eprintln!("usage: report [--out FOLDER] [--tiny] [--stability]");
                 return ExitCode::from(2);
             }
         }
+    }
+    if stability_map {
+        let config = if tiny {
+            StabilityConfig::tiny(&out)
+        } else {
+            StabilityConfig::full(&out)
+        };
+        return match stability::run(&config) {
+            Ok(_) => {
+                println!("wrote {out}/stability.md");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        };
     }
     let config = if tiny {
         ReportConfig::tiny(&out)

@@ -21,6 +21,8 @@
 //!
 //! Times are medians of repeated runs of the step (state copy excluded).
 
+pub mod stability;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -380,7 +382,7 @@ pub fn run(config: &ReportConfig) -> std::io::Result<String> {
     Ok(md)
 }
 
-fn machine() -> String {
+pub(crate) fn machine() -> String {
     std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {
