@@ -102,6 +102,12 @@
 //!   (feature `render`)
 //! - `ui::ClothInspectorPlugin` (feature `egui`)
 //!
+//! ## Stability
+//! - [`ClothGuard`]: the divergence guard's bounds and policy per cloth
+//!   ([`solver::guard`]); [`ClothDiverged`] reports what it did.
+//! - [`stability`]: stiff and extreme scenarios classified against the exact
+//!   method, and symplectic Euler's step limit `2/ω_max`.
+//!
 //! ## Scheduling
 //! - [`ClothPlugins::new`] takes the schedule (default `FixedUpdate`);
 //!   [`ClothSystems`] orders the step; [`ClothSimulation`] pauses and
@@ -149,10 +155,13 @@
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
 //!             (penalty spheres act inside the step: forces, and stiffness in A)
+//!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
+//!                    if not: restore last good; retry as 2, 4, … substeps (policy
+//!                    Retry) or stop the cloth (policy Pause)
 //! Collide:  for each cloth, each projection sphere: move vertices inside to the surface
-//! SyncOut:  for each cloth: non-finite or failed solve? restore last good, stop,
-//!           send ClothDiverged
-//!           else record max stretch and energy in ClothStats
+//! SyncOut:  for each cloth: the guard's check again after collision (restore, stop);
+//!           send ClothDiverged for each rejected step; else record max stretch
+//!           and energy in ClothStats
 //! Last:     (user hook)
 //! ```
 //!

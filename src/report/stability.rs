@@ -313,23 +313,18 @@ fn chart(
             .margin(6)
             .x_label_area_size(28)
             .y_label_area_size(44)
-            .build_cartesian_2d(0..time_steps.len() as i32, 0..stiffnesses.len() as i32)
+            .build_cartesian_2d(
+                -0.5..time_steps.len() as f64 - 0.5,
+                -0.5..stiffnesses.len() as f64 - 0.5,
+            )
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .disable_mesh()
             .x_labels(time_steps.len() + 1)
             .y_labels(stiffnesses.len() + 1)
-            .x_label_formatter(&|i| {
-                time_steps
-                    .get(*i as usize)
-                    .map_or(String::new(), |dt| format!("{dt}"))
-            })
-            .y_label_formatter(&|i| {
-                stiffnesses
-                    .get(*i as usize)
-                    .map_or(String::new(), |k| format!("{k:e}"))
-            })
+            .x_label_formatter(&|v| cell_label(*v, time_steps, |dt| format!("{dt}")))
+            .y_label_formatter(&|v| cell_label(*v, stiffnesses, |k| format!("{k:e}")))
             .label_style(("sans-serif", 11))
             .draw()
             .map_err(|e| e.to_string())?;
@@ -337,20 +332,25 @@ fn chart(
         for (i, row) in grid.iter().enumerate() {
             for (j, outcomes) in row.iter().enumerate() {
                 let c = color(&outcomes[m].verdict);
-                cells.push(Rectangle::new(
-                    [(j as i32, i as i32), (j as i32 + 1, i as i32 + 1)],
-                    c.filled(),
-                ));
-                cells.push(Rectangle::new(
-                    [(j as i32, i as i32), (j as i32 + 1, i as i32 + 1)],
-                    WHITE.stroke_width(1),
-                ));
+                let (x, y) = (j as f64, i as f64);
+                let corners = [(x - 0.5, y - 0.5), (x + 0.5, y + 0.5)];
+                cells.push(Rectangle::new(corners, c.filled()));
+                cells.push(Rectangle::new(corners, WHITE.stroke_width(1)));
             }
         }
         chart.draw_series(cells).map_err(|e| e.to_string())?;
     }
     root.present().map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// The label of the cell centred at `v` (cells sit at whole numbers).
+fn cell_label<T: Copy>(v: f64, values: &[T], text: impl Fn(T) -> String) -> String {
+    let i = v.round();
+    if (v - i).abs() > 1e-6 || i < 0.0 {
+        return String::new();
+    }
+    values.get(i as usize).map_or(String::new(), |&t| text(t))
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@ mod assignment;
 mod common;
 #[cfg(feature = "render")]
 mod drag;
+mod fuzz;
 mod plugin;
 mod scenes;
 mod stability;

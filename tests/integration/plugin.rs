@@ -358,3 +358,58 @@ fn pausing_stops_every_cloth_and_single_steps_run_one_step() {
     run_steps(&mut app, 2);
     assert_eq!(stats(&app, cloth).steps, 6);
 }
+
+#[test]
+fn teleporting_the_cloth_entity_and_the_sphere_never_lets_a_nan_out() {
+    let mut app = app();
+    let cloths: Vec<(MethodChoice, Entity)> = MethodChoice::ALL
+        .into_iter()
+        .map(|m| {
+            let e = app
+                .world_mut()
+                .spawn((
+                    Cloth::build(ClothBuilder::lab()).unwrap(),
+                    Transform::default(),
+                ))
+                .id();
+            m.insert(&mut app.world_mut().commands().entity(e));
+            (m, e)
+        })
+        .collect();
+    let sphere = app
+        .world_mut()
+        .spawn((
+            SphereCollider::new(2.7),
+            Transform::from_xyz(0.0, -30.0, 0.0),
+        ))
+        .id();
+    run_steps(&mut app, 20);
+    // The pinned entity jumps 100 units; the sphere jumps into the sheet.
+    for &(_, e) in &cloths {
+        app.world_mut()
+            .get_mut::<Transform>(e)
+            .unwrap()
+            .translation
+            .x += 100.0;
+    }
+    app.world_mut()
+        .get_mut::<Transform>(sphere)
+        .unwrap()
+        .translation = Vec3::new(100.0, -3.0, 2.0);
+    run_steps(&mut app, 40);
+    for (m, e) in cloths {
+        let s = stats(&app, e);
+        let x = positions(&app, e);
+        assert!(x.iter().all(|p| p.is_finite()), "{}", m.name());
+        assert!(
+            s.is_running() || matches!(s.status, ClothStatus::Diverged(_)),
+            "{}: {:?}",
+            m.name(),
+            s.status
+        );
+        if s.is_running() {
+            // The pins followed the entity exactly.
+            assert_eq!(x[0], Vec3A::new(105.0, 0.0, 5.0), "{}", m.name());
+        }
+    }
+}
