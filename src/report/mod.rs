@@ -358,7 +358,9 @@ pub fn run(config: &ReportConfig) -> std::io::Result<String> {
          single-threaded. Every method starts from the same state; the reference is the \
          exact implicit-Euler step (Newton with sparse Cholesky and line search, relative \
          gradient 1e-9). The linearly implicit methods use the compression-clamped spring \
-         blocks (the exact ones make `A` indefinite on the lab cloth). Lower-left is better.",
+         blocks (the exact ones make `A` indefinite on the lab cloth). Lower-left is better. Where each method stays \
+         stable, and where it is finite but wrong: [the stability map](stability.md) \
+         (`--stability`).",
         machine(),
         std::thread::available_parallelism().map_or(1, |n| n.get()),
         config.repeats
