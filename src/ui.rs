@@ -449,6 +449,12 @@ fn stats_ui(ui: &mut egui::Ui, stats: &ClothStats, history: &VecDeque<f32>) {
         stats.contacts
     ));
     ui.label(format!("energy: {:.3e}", stats.energy));
+    if stats.retried_steps > 0 {
+        ui.label(format!(
+            "guard: {} steps retried, now {} substeps per step",
+            stats.retried_steps, stats.substeps
+        ));
+    }
     match &stats.status {
         ClothStatus::Running => {}
         other => {
