@@ -5,7 +5,7 @@
 //! cargo run --release --example headless -- [--scene lab|assignment] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--rho 0.995] [--sphere] \
-//!     [--penalty C] [--clamp-compression] [--dump positions.csv]
+//!     [--penalty C] [--clamp-compression] [--dump positions.csv] [--compute-threads N]
 //! ```
 //!
 //! Methods: `implicit` (Jacobi), `chebyshev`, `pbd`, `symplectic`,
@@ -39,7 +39,7 @@ use bevy_cloth::prelude::*;
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
 [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct|exact] [--n N] [--rows R] \
 [--cols C] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
-[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--clamp-compression] [--dump FILE.csv]";
+[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--clamp-compression] [--dump FILE.csv] [--compute-threads N]";
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scene {
@@ -65,6 +65,7 @@ struct Options {
     penalty: f32,
     clamp: bool,
     dump: Option<String>,
+    compute_threads: Option<usize>,
 }
 
 impl Default for Options {
@@ -86,6 +87,7 @@ impl Default for Options {
             penalty: 10.0,
             clamp: false,
             dump: None,
+            compute_threads: None,
         }
     }
 }
@@ -125,6 +127,7 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
             "--penalty" => o.penalty = parse(&flag, args.next())?,
             "--clamp-compression" => o.clamp = true,
             "--dump" => o.dump = Some(parse(&flag, args.next())?),
+            "--compute-threads" => o.compute_threads = Some(parse(&flag, args.next())?),
             "-h" | "--help" => return Err(String::new()),
             other => return Err(format!("unknown argument '{other}'")),
         }
@@ -199,17 +202,29 @@ fn run(o: &Options) -> Result<(), String> {
     let (builder, params, dt) = scene(o)?;
     let model = builder.build().map_err(|e| e.to_string())?;
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, ClothPlugins::default()))
-        .insert_resource(Time::<Fixed>::from_seconds(dt))
-        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
-        .init_resource::<StepTimes>()
-        .add_systems(
-            FixedUpdate,
-            (
-                sweep.in_set(ClothSystems::First),
-                record.in_set(ClothSystems::Last),
-            ),
-        );
+    // Bevy gives its compute pool what the IO and async pools leave: one
+    // thread on a 2-core machine. `--compute-threads` asks for more, so the
+    // chunked solver loops of a large cloth can run in parallel.
+    let mut tasks = TaskPoolOptions::default();
+    if let Some(n) = o.compute_threads {
+        tasks.compute.min_threads = n;
+    }
+    app.add_plugins((
+        MinimalPlugins.set(TaskPoolPlugin {
+            task_pool_options: tasks,
+        }),
+        ClothPlugins::default(),
+    ))
+    .insert_resource(Time::<Fixed>::from_seconds(dt))
+    .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
+    .init_resource::<StepTimes>()
+    .add_systems(
+        FixedUpdate,
+        (
+            sweep.in_set(ClothSystems::First),
+            record.in_set(ClothSystems::Last),
+        ),
+    );
     let mut cloth = app
         .world_mut()
         .spawn((Cloth::new(model), params, Transform::default()));

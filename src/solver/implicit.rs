@@ -24,7 +24,7 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state, gradient};
+use super::{StepError, StepParams, StepReport, check_state, for_chunks, for_chunks2, gradient};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState, ParamError, SpringKind};
 
@@ -108,6 +108,8 @@ pub struct ImplicitWorkspace {
     x_prev: Vec<Vec3A>,
     /// Inverse diagonal including contact stiffness; empty without spheres.
     contact_diag: Vec<f32>,
+    /// Per chunk of vertices: the sum of squared Chebyshev updates.
+    chunk_sums: Vec<f64>,
 }
 
 impl ImplicitWorkspace {
@@ -215,12 +217,15 @@ pub fn step(
         } else {
             &ws.contact_diag
         };
-        let updates = x.iter_mut().zip(&ws.gradient).zip(inv_diag);
+        let gradient = &ws.gradient;
         match config.chebyshev {
             None => {
-                for ((xi, g), d) in updates {
-                    *xi -= *g * *d;
-                }
+                for_chunks(x, |start, x| {
+                    for ((xi, g), d) in x.iter_mut().zip(&gradient[start..]).zip(&inv_diag[start..])
+                    {
+                        *xi -= *g * *d;
+                    }
+                });
             }
             Some(kind) => {
                 if kind == Rho::Auto && k == delay {
@@ -231,16 +236,28 @@ pub fn step(
                     Some(1) => 2.0 / (2.0 - rho * rho),
                     _ => 4.0 / (4.0 - rho * rho * omega),
                 };
-                let mut update = 0.0f64;
-                for (((xi, g), d), prev) in updates.zip(ws.x_prev.iter_mut()) {
-                    let step = *g * *d;
-                    let x_hat = *xi - step;
-                    let before = *prev;
-                    *prev = *xi;
-                    *xi = omega * (x_hat - before) + before;
-                    update += f64::from(step.length_squared());
-                }
+                // Each chunk updates its vertices and the previous iterate,
+                // and sums its squared update norms; the sums are added in
+                // chunk order, so the total is the same on any thread count.
+                for_chunks2(x, &mut ws.x_prev, &mut ws.chunk_sums, |start, x, prev| {
+                    let mut update = 0.0f64;
+                    let per_vertex = x
+                        .iter_mut()
+                        .zip(prev.iter_mut())
+                        .zip(&gradient[start..])
+                        .zip(&inv_diag[start..]);
+                    for (((xi, prev), g), d) in per_vertex {
+                        let step = *g * *d;
+                        let x_hat = *xi - step;
+                        let before = *prev;
+                        *prev = *xi;
+                        *xi = omega * (x_hat - before) + before;
+                        update += f64::from(step.length_squared());
+                    }
+                    update
+                });
                 if k < delay {
+                    let update: f64 = ws.chunk_sums.iter().sum();
                     ws.update_norms.push(update.sqrt());
                 }
             }

@@ -199,6 +199,91 @@ pub(crate) fn spring_term(xa: Vec3A, xb: Vec3A, rest: f32, k: f32) -> Vec3A {
     }
 }
 
+/// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
+/// reductions over chunks give the same bits whatever the thread count.
+pub(crate) const CHUNK: usize = 4096;
+
+/// Below this many elements the chunked loops run serially: a task per
+/// chunk costs more than it saves.
+pub const PARALLEL_MIN: usize = 16_384;
+
+static PARALLEL: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
+
+/// Turns the parallel chunked loops on (the default) or off, process-wide.
+/// Results are bitwise the same either way; this only trades speed for
+/// threads.
+pub fn set_parallel(enabled: bool) {
+    PARALLEL.store(enabled, core::sync::atomic::Ordering::Relaxed);
+}
+
+fn parallel_pool(len: usize) -> Option<&'static bevy::tasks::ComputeTaskPool> {
+    if len >= PARALLEL_MIN && PARALLEL.load(core::sync::atomic::Ordering::Relaxed) {
+        bevy::tasks::ComputeTaskPool::try_get().filter(|p| p.thread_num() > 1)
+    } else {
+        None
+    }
+}
+
+/// Runs `f(start, chunk)` over `CHUNK`-sized chunks of `data`, on Bevy's
+/// `ComputeTaskPool` when `data` has at least [`PARALLEL_MIN`] elements and
+/// the pool (set up by Bevy's `TaskPoolPlugin`) has more than one thread,
+/// else serially. The chunks are the same either way, and each element is
+/// written by exactly one call, so the result is bitwise the same.
+pub(crate) fn for_chunks<T: Send>(data: &mut [T], f: impl Fn(usize, &mut [T]) + Send + Sync) {
+    match parallel_pool(data.len()) {
+        Some(pool) => {
+            let f = &f;
+            pool.scope(|scope| {
+                for (i, chunk) in data.chunks_mut(CHUNK).enumerate() {
+                    scope.spawn(async move { f(i * CHUNK, chunk) });
+                }
+            });
+        }
+        None => {
+            for (i, chunk) in data.chunks_mut(CHUNK).enumerate() {
+                f(i * CHUNK, chunk);
+            }
+        }
+    }
+}
+
+/// [`for_chunks`] over two slices of the same length, chunked alike;
+/// `f(start, a, b)` returns a value per chunk, written to `results[chunk]`
+/// (so reductions can add them in chunk order).
+pub(crate) fn for_chunks2<A: Send, B: Send, R: Send + Copy + Default>(
+    a: &mut [A],
+    b: &mut [B],
+    results: &mut Vec<R>,
+    f: impl Fn(usize, &mut [A], &mut [B]) -> R + Send + Sync,
+) {
+    let chunks = a.len().div_ceil(CHUNK);
+    results.clear();
+    results.resize(chunks, R::default());
+    let pool = parallel_pool(a.len());
+    let work = a
+        .chunks_mut(CHUNK)
+        .zip(b.chunks_mut(CHUNK))
+        .zip(results.iter_mut())
+        .enumerate();
+    match pool {
+        Some(pool) => {
+            let f = &f;
+            pool.scope(|scope| {
+                for (i, ((a, b), r)) in work {
+                    scope.spawn(async move {
+                        *r = f(i * CHUNK, a, b);
+                    });
+                }
+            });
+        }
+        None => {
+            for (i, ((a, b), r)) in work {
+                *r = f(i * CHUNK, a, b);
+            }
+        }
+    }
+}
+
 /// Fills `terms[e]` with each spring's gradient term at positions `x`.
 pub(crate) fn spring_terms(
     model: &ClothModel,
@@ -207,19 +292,24 @@ pub(crate) fn spring_terms(
     terms: &mut [Vec3A],
 ) {
     let k = stiffness.as_array();
-    for (t, s) in terms.iter_mut().zip(model.topology().springs()) {
-        *t = spring_term(
-            x[s.a as usize],
-            x[s.b as usize],
-            s.rest_length,
-            k[s.kind as usize],
-        );
-    }
+    let springs = model.topology().springs();
+    for_chunks(terms, |start, terms| {
+        for (t, s) in terms.iter_mut().zip(&springs[start..]) {
+            *t = spring_term(
+                x[s.a as usize],
+                x[s.b as usize],
+                s.rest_length,
+                k[s.kind as usize],
+            );
+        }
+    });
 }
 
 /// The gradient of the implicit-Euler objective (the lab's equation 1),
 /// `g = M(x − x̃)/dt² − f(x)` with spring and gravity forces, into `out`.
 /// Pinned vertices get zero. `terms` is scratch of one entry per spring.
+/// Large cloths are done in parallel chunks (see [`PARALLEL_MIN`]), with
+/// bitwise the same result.
 pub fn gradient(
     model: &ClothModel,
     x: &[Vec3A],
@@ -229,24 +319,28 @@ pub fn gradient(
     out: &mut [Vec3A],
 ) {
     spring_terms(model, x, &params.stiffness, terms);
+    let terms = &*terms;
     let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);
     let gravity = Vec3A::from(params.gravity);
     let adjacency = model.topology().adjacency();
     let masses = model.masses();
     let pinned = model.pinned();
-    for (i, g) in out.iter_mut().enumerate() {
-        if pinned[i] {
-            *g = Vec3A::ZERO;
-            continue;
+    for_chunks(out, |start, out| {
+        for (j, g) in out.iter_mut().enumerate() {
+            let i = start + j;
+            if pinned[i] {
+                *g = Vec3A::ZERO;
+                continue;
+            }
+            let m = masses[i];
+            let mut acc = (x[i] - x_tilde[i]) * (m * inv_dt2) - gravity * m;
+            for inc in adjacency.of(i) {
+                acc += terms[inc.spring as usize] * inc.sign;
+            }
+            *g = acc;
         }
-        let m = masses[i];
-        let mut acc = (x[i] - x_tilde[i]) * (m * inv_dt2) - gravity * m;
-        for inc in adjacency.of(i) {
-            acc += terms[inc.spring as usize] * inc.sign;
-        }
-        *g = acc;
-    }
+    });
 }
 
 /// The implicit-Euler objective whose minimiser is the next position:

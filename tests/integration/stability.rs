@@ -186,3 +186,54 @@ fn every_method_is_deterministic() {
     }
     let _ = AnyMethod::Symplectic;
 }
+
+#[test]
+fn parallel_chunks_give_the_same_bits_as_serial() {
+    use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+    ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+    // 131×131 = 17 161 vertices: above the parallel threshold.
+    let scenario = Scenario::grid(131, 8000.0, StepParams::LAB.dt).with_steps(3);
+    let bits = |s: &ClothState| -> Vec<u32> {
+        s.positions
+            .iter()
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect()
+    };
+    for method in [
+        AnyMethod::Implicit(bevy_cloth::solver::implicit::ImplicitConfig::jacobi(8)),
+        AnyMethod::Implicit(bevy_cloth::solver::implicit::ImplicitConfig::chebyshev_auto(16)),
+    ] {
+        bevy_cloth::solver::set_parallel(false);
+        let serial = bevy_cloth::stability::run(&scenario, &method);
+        bevy_cloth::solver::set_parallel(true);
+        let parallel = bevy_cloth::stability::run(&scenario, &method);
+        assert_eq!(
+            bits(&serial.state),
+            bits(&parallel.state),
+            "{}",
+            method.label()
+        );
+        assert_eq!(serial.steps, 3);
+    }
+}
+
+#[test]
+#[ignore = "timing, run by hand: cargo test --release -- --ignored --nocapture"]
+fn time_parallel_chunks() {
+    use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+    ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+    let scenario = Scenario::grid(256, 8000.0, StepParams::LAB.dt).with_steps(20);
+    let method = AnyMethod::Implicit(bevy_cloth::solver::implicit::ImplicitConfig::chebyshev(
+        32, 0.995,
+    ));
+    for parallel in [false, true, false, true] {
+        bevy_cloth::solver::set_parallel(parallel);
+        let t = std::time::Instant::now();
+        let r = bevy_cloth::stability::run(&scenario, &method);
+        println!(
+            "parallel {parallel}: {:.1} ms per step ({} steps)",
+            t.elapsed().as_secs_f64() * 1e3 / r.steps as f64,
+            r.steps
+        );
+    }
+}
