@@ -4,7 +4,7 @@
 
 use bevy::math::{Vec3, Vec3A};
 use bevy_cloth::collision::PenaltySphere;
-use bevy_cloth::model::ClothBuilder;
+use bevy_cloth::model::{ClothBuilder, ClothModel};
 use bevy_cloth::solver::guard::GuardBounds;
 use bevy_cloth::solver::{SpringStiffness, StepParams};
 use bevy_cloth::stability::{Scenario, map_methods, run};
@@ -70,6 +70,29 @@ fn any_f32() -> impl Strategy<Value = f32> {
     ]
 }
 
+/// Five steps of `model` with stiffness `k`, time step `dt` and `spheres`.
+fn five_steps(
+    model: ClothModel,
+    k: f32,
+    dt: f64,
+    spheres: Vec<PenaltySphere>,
+    bounds: GuardBounds,
+) -> Scenario {
+    Scenario {
+        name: "fuzz".into(),
+        model,
+        params: StepParams {
+            dt,
+            stiffness: SpringStiffness::uniform(k),
+            ..StepParams::LAB
+        },
+        spheres,
+        steps: 5,
+        events: Vec::new(),
+        bounds,
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
@@ -90,15 +113,7 @@ proptest! {
             // Refused with a typed error: fine.
             return Ok(());
         };
-        let scenario = Scenario {
-            name: "fuzz".into(),
-            model,
-            params: StepParams { dt, stiffness: SpringStiffness::uniform(k), ..StepParams::LAB },
-            spheres,
-            steps: 5,
-            events: Vec::new(),
-            bounds: GuardBounds::default(),
-        };
+        let scenario = five_steps(model, k, dt, spheres, GuardBounds::default());
         for method in map_methods() {
             let r = run(&scenario, &method);
             // Invalid parameters are refused with a typed error; nothing
@@ -124,15 +139,7 @@ proptest! {
             .with_masses(masses[..n].to_vec())
             .with_pins(pins)
             .build() else { return Ok(()); };
-        let scenario = Scenario {
-            name: "fuzz".into(),
-            model,
-            params: StepParams { dt, stiffness: SpringStiffness::uniform(k), ..StepParams::LAB },
-            spheres,
-            steps: 5,
-            events: Vec::new(),
-            bounds: GuardBounds::FINITE_ONLY,
-        };
+        let scenario = five_steps(model, k, dt, spheres, GuardBounds::FINITE_ONLY);
         let exact = map_methods().pop().unwrap();
         let r = run(&scenario, &exact);
         prop_assert!(r.failed.is_none(), "{:?}", r.failed);
