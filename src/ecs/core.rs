@@ -202,9 +202,13 @@ fn guard_and_measure(
                 .bounds
                 .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
             {
-                Ok(()) => {
-                    stats.max_stretch = solver::max_stretch(&cloth.model, &cloth.state.positions);
-                    stats.energy = solver::energy(&cloth.model, &cloth.state, &params);
+                Ok(measured) => {
+                    stats.max_stretch = measured.max_stretch.unwrap_or_else(|| {
+                        solver::max_stretch(&cloth.model, &cloth.state.positions)
+                    });
+                    stats.energy = measured
+                        .energy
+                        .unwrap_or_else(|| solver::energy(&cloth.model, &cloth.state, &params));
                 }
                 Err(reason) => {
                     cloth.state.copy_from(&cloth.last_good);

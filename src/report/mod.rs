@@ -33,13 +33,11 @@ use plotters::prelude::*;
 
 use crate::collision::PenaltySphere;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
-use crate::solver::exact::{self, ExactConfig, ExactWorkspace};
+use crate::solver::any::{AnyMethod, AnyWorkspace};
+use crate::solver::exact::{self, ExactConfig};
 use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use crate::solver::linear::{
-    self, CgConfig, LinearConfig, LinearSolver, LinearWorkspace, SpringJacobian,
-};
-use crate::solver::pbd::{self, PbdConfig, PbdWorkspace};
-use crate::solver::symplectic::{self, SymplecticWorkspace};
+use crate::solver::linear::{CgConfig, LinearConfig, LinearSolver, SpringJacobian};
+use crate::solver::pbd::PbdConfig;
 use crate::solver::{SpringStiffness, StepParams, step_error};
 
 /// One scene of the report.
@@ -207,64 +205,53 @@ impl Method {
     }
 }
 
-#[derive(Default)]
-struct Workspaces {
-    implicit: ImplicitWorkspace,
-    linear: LinearWorkspace,
-    exact: ExactWorkspace,
-    symplectic: SymplecticWorkspace,
-    pbd: PbdWorkspace,
-}
-
-/// One step of `method`; false if the method refused or failed.
-fn step(method: Method, scene: &ReportScene, state: &mut ClothState, ws: &mut Workspaces) -> bool {
-    let (m, p, s) = (&scene.model, &scene.params, &scene.spheres[..]);
-    let clamp = LinearConfig {
-        springs: SpringJacobian::ClampCompression,
-        ..LinearConfig::default()
-    };
-    match method {
-        Method::Jacobi(k) => {
-            implicit::step(m, state, p, &ImplicitConfig::jacobi(k), s, &mut ws.implicit).is_ok()
-        }
-        Method::Chebyshev(k, rho) => {
-            let config = if rho > 0.0 {
-                ImplicitConfig::chebyshev(k, rho)
-            } else {
-                ImplicitConfig::chebyshev_auto(k)
-            };
-            implicit::step(m, state, p, &config, s, &mut ws.implicit).is_ok()
-        }
-        Method::Cg(k) => {
-            let config = LinearConfig {
+impl Method {
+    /// The solver setting this point runs: the linearly implicit methods
+    /// with compression-clamped spring blocks, CG to a fixed iteration count.
+    fn solver(self) -> AnyMethod {
+        let clamp = LinearConfig {
+            springs: SpringJacobian::ClampCompression,
+            ..LinearConfig::default()
+        };
+        match self {
+            Method::Jacobi(k) => AnyMethod::Implicit(ImplicitConfig::jacobi(k)),
+            Method::Chebyshev(k, rho) if rho > 0.0 => {
+                AnyMethod::Implicit(ImplicitConfig::chebyshev(k, rho))
+            }
+            Method::Chebyshev(k, _) => AnyMethod::Implicit(ImplicitConfig::chebyshev_auto(k)),
+            Method::Cg(k) => AnyMethod::Linear(LinearConfig {
                 solver: LinearSolver::Cg(CgConfig {
                     max_iterations: k,
                     tolerance: 0.0,
                     ..CgConfig::default()
                 }),
                 ..clamp
-            };
-            linear::step(m, state, p, &config, s, &mut ws.linear).is_ok()
-        }
-        Method::Direct => {
-            let config = LinearConfig {
+            }),
+            Method::Direct => AnyMethod::Linear(LinearConfig {
                 solver: LinearSolver::Direct,
                 ..clamp
-            };
-            linear::step(m, state, p, &config, s, &mut ws.linear).is_ok()
-        }
-        Method::Newton(k) => {
-            let config = ExactConfig {
+            }),
+            Method::Newton(k) => AnyMethod::Exact(ExactConfig {
                 max_iterations: k,
                 ..ExactConfig::default()
-            };
-            exact::step(m, state, p, &config, s, &mut ws.exact).is_ok()
-        }
-        Method::Symplectic => symplectic::step(m, state, p, s, &mut ws.symplectic).is_ok(),
-        Method::Pbd(k) => {
-            pbd::step(m, state, p, &PbdConfig { iterations: k }, s, &mut ws.pbd).is_ok()
+            }),
+            Method::Symplectic => AnyMethod::Symplectic,
+            Method::Pbd(k) => AnyMethod::Pbd(PbdConfig { iterations: k }),
         }
     }
+}
+
+/// One step of `method`; false if the method refused or failed.
+fn step(
+    method: Method,
+    scene: &ReportScene,
+    state: &mut ClothState,
+    ws: &mut AnyWorkspace,
+) -> bool {
+    method
+        .solver()
+        .step(&scene.model, state, &scene.params, &scene.spheres, ws)
+        .is_ok()
 }
 
 fn median(mut xs: Vec<Duration>) -> Duration {
@@ -401,7 +388,7 @@ fn scene_report(
     scene: &ReportScene,
     md: &mut String,
 ) -> std::io::Result<()> {
-    let mut ws = Workspaces::default();
+    let mut ws = AnyWorkspace::default();
     // A representative state: the exact trajectory after `warmup` steps.
     let rest = ClothState::at_rest(&scene.model, &Affine3A::IDENTITY);
     let mut start = rest.clone();

@@ -89,14 +89,16 @@ impl GuardBounds {
     /// bounds that are set. A stretch beyond the bound passes if it is no
     /// larger than before the step: the cloth is recovering from something
     /// done to it (a pin teleported far away), not blowing up. Costs one pass
-    /// over the vertices, plus one over the springs per bound that is set.
+    /// over the vertices, plus one over the springs per bound that is set;
+    /// returns what it measured, so a caller need not measure it again.
     pub fn check(
         &self,
         model: &ClothModel,
         state: &ClothState,
         before: &ClothState,
         params: &StepParams,
-    ) -> Result<(), DivergenceReason> {
+    ) -> Result<Measured, DivergenceReason> {
+        let mut measured = Measured::default();
         if !state.is_finite() {
             return Err(DivergenceReason::NonFinite);
         }
@@ -113,15 +115,27 @@ impl GuardBounds {
             {
                 return Err(DivergenceReason::Stretch);
             }
+            measured.max_stretch = Some(stretch);
         }
         if let Some(bound) = self.max_energy {
             let e = energy(model, state, params);
             if e.is_nan() || e > bound {
                 return Err(DivergenceReason::Energy);
             }
+            measured.energy = Some(e);
         }
-        Ok(())
+        Ok(measured)
     }
+}
+
+/// What [`GuardBounds::check`] measured on the way: the largest stretch and
+/// the energy, for each bound that is set.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Measured {
+    /// Largest spring stretch, if the stretch bound is set.
+    pub max_stretch: Option<f32>,
+    /// Total energy, if the energy bound is set.
+    pub energy: Option<f64>,
 }
 
 /// What to do with a step that fails the guard.
@@ -448,7 +462,7 @@ mod tests {
         );
         assert_eq!(
             GuardBounds::FINITE_ONLY.check(&model, &state, &state, &params),
-            Ok(())
+            Ok(Measured::default())
         );
     }
 }
