@@ -61,6 +61,12 @@ pub struct Incidence {
 pub struct Adjacency {
     offsets: Vec<u32>,
     incidences: Vec<Incidence>,
+    /// The same rows as bare spring indices, each row split in two: the
+    /// springs whose `a` the vertex is (`offsets[i]..split[i]`), then those
+    /// whose `b` it is (`split[i]..offsets[i + 1]`). The solvers' gathers
+    /// read 4 bytes per incidence and add or subtract without a multiply.
+    signed: Vec<u32>,
+    split: Vec<u32>,
 }
 
 impl Adjacency {
@@ -94,10 +100,41 @@ impl Adjacency {
                 *slot += 1;
             }
         }
+        let mut signed = Vec::with_capacity(incidences.len());
+        let mut split = Vec::with_capacity(vertex_count);
+        for i in 0..vertex_count {
+            let row = &incidences[offsets[i] as usize..offsets[i + 1] as usize];
+            signed.extend(
+                row.iter()
+                    .filter(|inc| inc.sign > 0.0)
+                    .map(|inc| inc.spring),
+            );
+            split.push(signed.len() as u32);
+            signed.extend(
+                row.iter()
+                    .filter(|inc| inc.sign < 0.0)
+                    .map(|inc| inc.spring),
+            );
+        }
         Self {
             offsets,
             incidences,
+            signed,
+            split,
         }
+    }
+
+    /// The springs of vertex `i` split by side: those that start at `i`
+    /// (their per-spring term is added) and those that end at `i` (it is
+    /// subtracted), each in increasing spring order.
+    #[inline]
+    pub fn by_side(&self, i: usize) -> (&[u32], &[u32]) {
+        let (start, split, end) = (
+            self.offsets[i] as usize,
+            self.split[i] as usize,
+            self.offsets[i + 1] as usize,
+        );
+        (&self.signed[start..split], &self.signed[split..end])
     }
 
     /// The springs incident to vertex `i`.

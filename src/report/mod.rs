@@ -21,6 +21,7 @@
 //!
 //! Times are medians of repeated runs of the step (state copy excluded).
 
+pub mod perf;
 pub mod stability;
 
 use std::fmt::Write as _;

@@ -6,7 +6,7 @@
 //! 1. damp: `vᵢ ← damping·vᵢ`; predict `x̃ᵢ = xᵢ + dt·vᵢ`; initial guess
 //!    `xᵢ = x̃ᵢ` (lab 1.a);
 //! 2. `K` times: the gradient `g = M(x − x̃)/dt² − f(x)` of the implicit-Euler
-//!    objective (lab 1.b, [`gradient`]), then the
+//!    objective (lab 1.b, [`gradient`](super::gradient)), then the
 //!    diagonal-Hessian update `xᵢ ← xᵢ − gᵢ / (mᵢ/dt² + 4k)` (lab 1.c).
 //!    With Chebyshev acceleration (lab 1.d; Wang 2015, "A Chebyshev
 //!    semi-iterative approach for accelerating projective and position-based
@@ -24,9 +24,12 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state, for_chunks, for_chunks2, gradient};
+use super::{
+    StepError, StepParams, StepReport, check_state, for_chunks, for_chunks2, spring_terms,
+    stiffness_coeffs,
+};
 use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState, ParamError, SpringKind};
+use crate::model::{Adjacency, ClothModel, ClothState, ParamError, SpringKind};
 
 /// The spectral radius `ρ` that Chebyshev acceleration assumes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -99,31 +102,34 @@ impl Default for ImplicitConfig {
 #[derive(Clone, Debug, Default)]
 pub struct ImplicitWorkspace {
     x_tilde: Vec<Vec3A>,
-    gradient: Vec<Vec3A>,
+    /// `x̃ + dt²·g`: the gradient's mass term is `m/dt²·(x − target)`.
+    target: Vec<Vec3A>,
+    /// `m/dt²` per vertex.
+    mass_term: Vec<f32>,
+    /// Per spring `[k, kL]` (see `spring_scales`).
+    coeffs: Vec<[f32; 2]>,
+    /// Per spring: its gradient term `k(1 − L/l)(x_a − x_b)`.
     terms: Vec<Vec3A>,
+    /// `1/(m/dt² + Σk)` per free vertex, `0` for a pinned one (so no update
+    /// moves it).
     inv_diag: Vec<f32>,
+    /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
     base_diag: Vec<f32>,
     update_norms: Vec<f64>,
     /// The iterate before last, for Chebyshev; empty without it.
     x_prev: Vec<Vec3A>,
-    /// Inverse diagonal including contact stiffness; empty without spheres.
-    contact_diag: Vec<f32>,
-    /// Per chunk of vertices: the sum of squared Chebyshev updates.
+    /// Per chunk of vertices: the sum of squared updates.
     chunk_sums: Vec<f64>,
 }
 
 impl ImplicitWorkspace {
-    fn prepare(&mut self, vertices: usize, springs: usize, chebyshev: bool, contacts: bool) {
-        if contacts {
-            self.contact_diag.resize(vertices, 0.0);
-        } else {
-            self.contact_diag = Vec::new();
+    fn prepare(&mut self, vertices: usize, chebyshev: bool) {
+        for v in [&mut self.x_tilde, &mut self.target] {
+            v.resize(vertices, Vec3A::ZERO);
         }
-        self.x_tilde.resize(vertices, Vec3A::ZERO);
-        self.gradient.resize(vertices, Vec3A::ZERO);
-        self.inv_diag.resize(vertices, 0.0);
-        self.base_diag.resize(vertices, 0.0);
-        self.terms.resize(springs, Vec3A::ZERO);
+        for v in [&mut self.mass_term, &mut self.inv_diag, &mut self.base_diag] {
+            v.resize(vertices, 0.0);
+        }
         if chebyshev {
             self.x_prev.resize(vertices, Vec3A::ZERO);
         } else {
@@ -137,10 +143,60 @@ impl ImplicitWorkspace {
     }
 }
 
+/// What one iteration's vertex pass needs, shared by every chunk.
+struct VertexPass<'a> {
+    target: &'a [Vec3A],
+    mass_term: &'a [f32],
+    inv_diag: &'a [f32],
+    base_diag: &'a [f32],
+    terms: &'a [Vec3A],
+    adjacency: &'a Adjacency,
+    pinned: &'a [bool],
+    spheres: &'a [PenaltySphere],
+}
+
+impl VertexPass<'_> {
+    /// The objective's gradient at vertex `i` and the inverse of its
+    /// diagonal, penalty contacts included (for a pinned vertex the gradient
+    /// is not zeroed, but its inverse diagonal is 0).
+    #[inline(always)]
+    fn gradient(&self, i: usize, xi: Vec3A) -> (Vec3A, f32) {
+        // Two accumulators: two shorter chains of dependent additions.
+        let (starts, ends) = self.adjacency.by_side(i);
+        let mut plus = Vec3A::ZERO;
+        for &e in starts {
+            plus += self.terms[e as usize];
+        }
+        let mut minus = Vec3A::ZERO;
+        for &e in ends {
+            minus += self.terms[e as usize];
+        }
+        let mut g = (xi - self.target[i]) * self.mass_term[i] + (plus - minus);
+        let mut inv_diag = self.inv_diag[i];
+        if !self.spheres.is_empty() && !self.pinned[i] {
+            let mut diag = self.base_diag[i];
+            for sphere in self.spheres {
+                if let Some(contact) = sphere.contact(xi) {
+                    g -= contact.force;
+                    diag += sphere.stiffness;
+                }
+            }
+            inv_diag = 1.0 / diag;
+        }
+        (g, inv_diag)
+    }
+}
+
 /// Advances `state` by one implicit-Euler step (see the module docs).
 ///
 /// Returns the iterations performed and the final gradient norm. On error
 /// the state is unchanged.
+///
+/// Each iteration is two passes: one over springs, which computes every
+/// spring's gradient term once (square roots and divisions in packed SIMD
+/// blocks), and one over vertices, which gathers each vertex's terms over
+/// its adjacency and updates its position in the same loop. Both passes are
+/// split in fixed chunks, run in parallel for large cloths.
 pub fn step(
     model: &ClothModel,
     state: &mut ClothState,
@@ -153,12 +209,7 @@ pub fn step(
     config.validate()?;
     check_state(model, state)?;
     let n = model.vertex_count();
-    ws.prepare(
-        n,
-        model.topology().springs().len(),
-        config.chebyshev.is_some(),
-        !spheres.is_empty(),
-    );
+    ws.prepare(n, config.chebyshev.is_some());
     let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);
     let pinned = model.pinned();
@@ -172,6 +223,9 @@ pub fn step(
     let k = params.stiffness.as_array();
     let springs = model.topology().springs();
     let adjacency = model.topology().adjacency();
+    let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
+    stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+    ws.terms.resize(springs.len(), Vec3A::ZERO);
     let ClothState {
         positions: x,
         velocities: v,
@@ -184,6 +238,9 @@ pub fn step(
             x[i] += dt * v[i];
         }
         ws.x_tilde[i] = x[i];
+        ws.target[i] = x[i] + gravity_step;
+        let m = model.masses()[i];
+        ws.mass_term[i] = m * inv_dt2;
         let spring_diag = if lab_diagonal {
             4.0 * k[SpringKind::Stretch as usize]
         } else {
@@ -193,8 +250,12 @@ pub fn step(
                 .map(|inc| k[springs[inc.spring as usize].kind as usize])
                 .sum()
         };
-        ws.base_diag[i] = model.masses()[i] * inv_dt2 + spring_diag;
-        ws.inv_diag[i] = 1.0 / ws.base_diag[i];
+        ws.base_diag[i] = m * inv_dt2 + spring_diag;
+        ws.inv_diag[i] = if pinned[i] {
+            0.0
+        } else {
+            1.0 / ws.base_diag[i]
+        };
     }
     if config.chebyshev.is_some() {
         ws.x_prev.copy_from_slice(x);
@@ -210,20 +271,26 @@ pub fn step(
     };
     ws.update_norms.clear();
     for k in 0..config.iterations {
-        objective_gradient(model, x, params, spheres, ws);
-        // Pinned vertices have a zero gradient, so neither update moves them.
-        let inv_diag = if spheres.is_empty() {
-            &ws.inv_diag
-        } else {
-            &ws.contact_diag
+        spring_terms(model, x, &ws.coeffs, &mut ws.terms);
+        let pass = VertexPass {
+            target: &ws.target,
+            mass_term: &ws.mass_term,
+            inv_diag: &ws.inv_diag,
+            base_diag: &ws.base_diag,
+            terms: &ws.terms,
+            adjacency,
+            pinned,
+            spheres,
         };
-        let gradient = &ws.gradient;
+        // A pinned vertex has a zero inverse diagonal, so neither update
+        // moves it (Chebyshev: its iterate and the one before are equal).
         match config.chebyshev {
             None => {
-                for_chunks(x, |start, x| {
-                    for ((xi, g), d) in x.iter_mut().zip(&gradient[start..]).zip(&inv_diag[start..])
-                    {
-                        *xi -= *g * *d;
+                let pass = &pass;
+                for_chunks(x, move |start, x| {
+                    for (j, xi) in x.iter_mut().enumerate() {
+                        let (g, d) = pass.gradient(start + j, *xi);
+                        *xi -= g * d;
                     }
                 });
             }
@@ -239,20 +306,20 @@ pub fn step(
                 // Each chunk updates its vertices and the previous iterate,
                 // and sums its squared update norms; the sums are added in
                 // chunk order, so the total is the same on any thread count.
-                for_chunks2(x, &mut ws.x_prev, &mut ws.chunk_sums, |start, x, prev| {
+                // Copies, so the loop keeps them in registers.
+                let (measure, omega, pass) = (k < delay, omega, &pass);
+                for_chunks2(x, &mut ws.x_prev, &mut ws.chunk_sums, move |start, x, prev| {
                     let mut update = 0.0f64;
-                    let per_vertex = x
-                        .iter_mut()
-                        .zip(prev.iter_mut())
-                        .zip(&gradient[start..])
-                        .zip(&inv_diag[start..]);
-                    for (((xi, prev), g), d) in per_vertex {
-                        let step = *g * *d;
+                    for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
+                        let (g, d) = pass.gradient(start + j, *xi);
+                        let step = g * d;
                         let x_hat = *xi - step;
                         let before = *prev;
                         *prev = *xi;
                         *xi = omega * (x_hat - before) + before;
-                        update += f64::from(step.length_squared());
+                        if measure {
+                            update += f64::from(step.length_squared());
+                        }
                     }
                     update
                 });
@@ -264,14 +331,25 @@ pub fn step(
         }
     }
 
-    // Residual at the final iterate.
-    objective_gradient(model, x, params, spheres, ws);
-    let residual = ws
-        .gradient
-        .iter()
-        .map(|g| g.length_squared())
-        .sum::<f32>()
-        .sqrt();
+    // Residual at the final iterate: the gradient over free vertices.
+    spring_terms(model, x, &ws.coeffs, &mut ws.terms);
+    let pass = VertexPass {
+        target: &ws.target,
+        mass_term: &ws.mass_term,
+        inv_diag: &ws.inv_diag,
+        base_diag: &ws.base_diag,
+        terms: &ws.terms,
+        adjacency,
+        pinned,
+        spheres,
+    };
+    let mut residual = 0.0f32;
+    for i in 0..n {
+        if !pinned[i] {
+            residual += pass.gradient(i, x[i]).0.length_squared();
+        }
+    }
+    let residual = residual.sqrt();
 
     // 1.c: velocities from the positions.
     let inv_dt = 1.0 / dt;
@@ -286,35 +364,6 @@ pub fn step(
     })
 }
 
-/// The gradient at `x` into `ws.gradient`, with penalty contacts (which
-/// also refresh `ws.contact_diag`).
-fn objective_gradient(
-    model: &ClothModel,
-    x: &[Vec3A],
-    params: &StepParams,
-    spheres: &[PenaltySphere],
-    ws: &mut ImplicitWorkspace,
-) {
-    gradient(
-        model,
-        x,
-        &ws.x_tilde,
-        params,
-        &mut ws.terms,
-        &mut ws.gradient,
-    );
-    if !spheres.is_empty() {
-        add_penalty(
-            model,
-            x,
-            spheres,
-            &mut ws.gradient,
-            &ws.base_diag,
-            &mut ws.contact_diag,
-        );
-    }
-}
-
 /// `ρ` from successive Jacobi update norms `‖x_{k+1} − x_k‖`: their
 /// geometric mean decay over the second half, clamped to `[0.5, 0.9999]`
 /// (0.9 when there are too few). Used by [`Rho::Auto`].
@@ -324,29 +373,4 @@ pub fn rho_from_update_norms(norms: &[f64]) -> f32 {
         return 0.9;
     }
     ((norms[hi] / norms[lo]).powf(1.0 / (hi - lo) as f64) as f32).clamp(0.5, 0.9999)
-}
-
-/// Adds penalty forces to the gradient (`g −= f_c`) and writes the inverse
-/// diagonal with each contact's stiffness `c` added.
-fn add_penalty(
-    model: &ClothModel,
-    x: &[Vec3A],
-    spheres: &[PenaltySphere],
-    gradient: &mut [Vec3A],
-    base_diag: &[f32],
-    inv_diag: &mut [f32],
-) {
-    let pinned = model.pinned();
-    for i in 0..model.vertex_count() {
-        let mut diag = base_diag[i];
-        if !pinned[i] {
-            for sphere in spheres {
-                if let Some(contact) = sphere.contact(x[i]) {
-                    gradient[i] -= contact.force;
-                    diag += sphere.stiffness;
-                }
-            }
-        }
-        inv_diag[i] = 1.0 / diag;
-    }
 }

@@ -32,10 +32,10 @@ pub mod linear;
 pub mod pbd;
 pub mod symplectic;
 
-use bevy::math::{Vec3, Vec3A};
+use bevy::math::{Mat4, Vec3, Vec3A, Vec4};
 use thiserror::Error;
 
-use crate::model::{ClothModel, ClothState, ParamError, SpringKind};
+use crate::model::{ClothModel, ClothState, ParamError, Spring, SpringKind};
 
 /// Stiffness of each [`SpringKind`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -185,20 +185,6 @@ pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), 
     Ok(())
 }
 
-/// Per-spring gradient term `k(1 − L/l)(x_a − x_b)` (the lab's equation 2)
-/// for spring `a→b`; zero for a spring of zero current length, whose
-/// direction is undefined.
-#[inline]
-pub(crate) fn spring_term(xa: Vec3A, xb: Vec3A, rest: f32, k: f32) -> Vec3A {
-    let d = xa - xb;
-    let l = d.length();
-    if l > 0.0 {
-        d * (k * (1.0 - rest / l))
-    } else {
-        Vec3A::ZERO
-    }
-}
-
 /// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
 /// reductions over chunks give the same bits whatever the thread count.
 pub(crate) const CHUNK: usize = 4096;
@@ -284,24 +270,96 @@ pub(crate) fn for_chunks2<A: Send, B: Send, R: Send + Copy + Default>(
     }
 }
 
-/// Fills `terms[e]` with each spring's gradient term at positions `x`.
+/// For every spring `e = (a, b)` of `springs`, with `d = x_a − x_b` and
+/// `l = ‖d‖`: calls `emit(e, d, α_e − β_e/l)` (`0` for a spring of zero
+/// length, whose direction is undefined), with `[α_e, β_e] = coeffs[e]`.
+///
+/// Both spring-based pipelines have this form: the implicit gradient term is
+/// `d·k(1 − L/l)` (`α = k`, `β = kL`), and PBD's half correction is
+/// `d·L/(2l)` (`α = 0`, `β = −L/2`). `e` counts from 0 within `springs`.
+///
+/// Four springs at a time: their four `d` are transposed in registers
+/// (glam's `Mat4`) into `x`, `y` and `z` lanes, so the squared lengths, the
+/// square roots and the divisions are one packed SIMD instruction each for
+/// the four (glam's `Vec4`: SSE2 on x86-64, NEON on aarch64). Per spring,
+/// a horizontal dot product and a scalar `sqrtss` + `divss` bounded the
+/// loop before; on the lab cloth this halves the spring pass (see
+/// `docs/perf.md`).
+#[inline]
+pub(crate) fn spring_scales(
+    springs: &[Spring],
+    coeffs: &[[f32; 2]],
+    x: &[Vec3A],
+    mut emit: impl FnMut(usize, Vec3A, f32),
+) {
+    let groups = springs.chunks_exact(4).zip(coeffs.chunks_exact(4));
+    let done = springs.len() / 4 * 4;
+    for (g, (s, c)) in groups.enumerate() {
+        let d = [
+            x[s[0].a as usize] - x[s[0].b as usize],
+            x[s[1].a as usize] - x[s[1].b as usize],
+            x[s[2].a as usize] - x[s[2].b as usize],
+            x[s[3].a as usize] - x[s[3].b as usize],
+        ];
+        let lanes = Mat4::from_cols(
+            d[0].extend(0.0),
+            d[1].extend(0.0),
+            d[2].extend(0.0),
+            d[3].extend(0.0),
+        )
+        .transpose();
+        let l2 =
+            lanes.x_axis * lanes.x_axis + lanes.y_axis * lanes.y_axis + lanes.z_axis * lanes.z_axis;
+        let alpha = Vec4::new(c[0][0], c[1][0], c[2][0], c[3][0]);
+        let beta = Vec4::new(c[0][1], c[1][1], c[2][1], c[3][1]);
+        let scale = Vec4::select(l2.cmpgt(Vec4::ZERO), alpha - beta / l2.sqrt(), Vec4::ZERO);
+        emit(4 * g, d[0], scale.x);
+        emit(4 * g + 1, d[1], scale.y);
+        emit(4 * g + 2, d[2], scale.z);
+        emit(4 * g + 3, d[3], scale.w);
+    }
+    for (j, (s, [alpha, beta])) in springs[done..].iter().zip(&coeffs[done..]).enumerate() {
+        let d = x[s.a as usize] - x[s.b as usize];
+        let l2 = d.length_squared();
+        let scale = if l2 > 0.0 {
+            alpha - beta / l2.sqrt()
+        } else {
+            0.0
+        };
+        emit(done + j, d, scale);
+    }
+}
+
+/// Per spring `[k, kL]`, the coefficients of the implicit gradient term
+/// `d·k(1 − L/l)` for [`spring_scales`].
+pub(crate) fn stiffness_coeffs(
+    model: &ClothModel,
+    stiffness: &SpringStiffness,
+    out: &mut Vec<[f32; 2]>,
+) {
+    let k = stiffness.as_array();
+    out.clear();
+    out.extend(model.topology().springs().iter().map(|s| {
+        let k = k[s.kind as usize];
+        [k, k * s.rest_length]
+    }));
+}
+
+/// Fills `terms[e]` with each spring's gradient term `k(1 − L/l)(x_a − x_b)`
+/// at positions `x`, in parallel chunks for large cloths. `coeffs` is from
+/// [`stiffness_coeffs`].
 pub(crate) fn spring_terms(
     model: &ClothModel,
     x: &[Vec3A],
-    stiffness: &SpringStiffness,
+    coeffs: &[[f32; 2]],
     terms: &mut [Vec3A],
 ) {
-    let k = stiffness.as_array();
     let springs = model.topology().springs();
     for_chunks(terms, |start, terms| {
-        for (t, s) in terms.iter_mut().zip(&springs[start..]) {
-            *t = spring_term(
-                x[s.a as usize],
-                x[s.b as usize],
-                s.rest_length,
-                k[s.kind as usize],
-            );
-        }
+        let end = start + terms.len();
+        spring_scales(&springs[start..end], &coeffs[start..end], x, |e, d, s| {
+            terms[e] = d * s;
+        });
     });
 }
 
@@ -318,7 +376,9 @@ pub fn gradient(
     terms: &mut [Vec3A],
     out: &mut [Vec3A],
 ) {
-    spring_terms(model, x, &params.stiffness, terms);
+    let mut coeffs = Vec::new();
+    stiffness_coeffs(model, &params.stiffness, &mut coeffs);
+    spring_terms(model, x, &coeffs, terms);
     let terms = &*terms;
     let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);

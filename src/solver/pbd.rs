@@ -18,7 +18,7 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state};
+use super::{StepError, StepParams, StepReport, check_state, spring_scales};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState, ParamError};
 
@@ -54,6 +54,10 @@ impl Default for PbdConfig {
 pub struct PbdWorkspace {
     /// Per spring: the midpoint and half the rest-length vector.
     proposals: Vec<[Vec3A; 2]>,
+    /// Per spring `[0, −L/2]` (see `spring_scales`).
+    coeffs: Vec<[f32; 2]>,
+    /// Per vertex: `1/(0.2 + nᵢ)`.
+    inv_weight: Vec<f32>,
 }
 
 /// Advances `state` by one PBD step (see the module docs). Stiffness is not
@@ -74,6 +78,12 @@ pub fn step(
     let adjacency = model.topology().adjacency();
     let pinned = model.pinned();
     ws.proposals.resize(springs.len(), [Vec3A::ZERO; 2]);
+    ws.coeffs.clear();
+    ws.coeffs
+        .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
+    ws.inv_weight.clear();
+    ws.inv_weight
+        .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
     let dt = params.dt as f32;
     let inv_dt = 1.0 / dt;
     let gravity = Vec3A::from(params.gravity);
@@ -96,28 +106,26 @@ pub fn step(
     }
 
     for _ in 0..config.iterations {
-        for (p, s) in ws.proposals.iter_mut().zip(springs) {
-            let (xa, xb) = (x[s.a as usize], x[s.b as usize]);
-            let d = xa - xb;
-            let l = d.length();
-            let half = if l > 0.0 {
-                d * (0.5 * s.rest_length / l)
-            } else {
-                Vec3A::ZERO
-            };
-            *p = [0.5 * (xa + xb), half];
-        }
+        let proposals = &mut ws.proposals;
+        spring_scales(springs, &ws.coeffs, x, |e, d, half| {
+            let s = &springs[e];
+            proposals[e] = [0.5 * (x[s.a as usize] + x[s.b as usize]), d * half];
+        });
         for i in 0..n {
             if pinned[i] {
                 continue;
             }
-            let incidences = adjacency.of(i);
-            let mut sum = Vec3A::ZERO;
-            for inc in incidences {
-                let [mid, half] = ws.proposals[inc.spring as usize];
-                sum += mid + half * inc.sign;
+            let mut sum = SELF_WEIGHT * x[i];
+            let (starts, ends) = adjacency.by_side(i);
+            for &e in starts {
+                let [mid, half] = ws.proposals[e as usize];
+                sum += mid + half;
             }
-            let new = (SELF_WEIGHT * x[i] + sum) / (SELF_WEIGHT + incidences.len() as f32);
+            for &e in ends {
+                let [mid, half] = ws.proposals[e as usize];
+                sum += mid - half;
+            }
+            let new = sum * ws.inv_weight[i];
             v[i] += (new - x[i]) * inv_dt;
             x[i] = new;
         }

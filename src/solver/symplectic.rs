@@ -10,7 +10,7 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state, spring_terms};
+use super::{StepError, StepParams, StepReport, check_state, spring_terms, stiffness_coeffs};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -18,6 +18,7 @@ use crate::model::{ClothModel, ClothState};
 #[derive(Clone, Debug, Default)]
 pub struct SymplecticWorkspace {
     terms: Vec<Vec3A>,
+    coeffs: Vec<[f32; 2]>,
 }
 
 /// Advances `state` by one symplectic Euler step (see the module docs).
@@ -33,7 +34,8 @@ pub fn step(
     ws.terms
         .resize(model.topology().springs().len(), Vec3A::ZERO);
     // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
-    spring_terms(model, &state.positions, &params.stiffness, &mut ws.terms);
+    stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+    spring_terms(model, &state.positions, &ws.coeffs, &mut ws.terms);
     let h = params.dt as f32;
     let gravity = Vec3A::from(params.gravity);
     let adjacency = model.topology().adjacency();
@@ -44,8 +46,12 @@ pub fn step(
         }
         let x = state.positions[i];
         let mut f = gravity * m;
-        for inc in adjacency.of(i) {
-            f -= ws.terms[inc.spring as usize] * inc.sign;
+        let (starts, ends) = adjacency.by_side(i);
+        for &e in starts {
+            f -= ws.terms[e as usize];
+        }
+        for &e in ends {
+            f += ws.terms[e as usize];
         }
         for sphere in spheres {
             if let Some(contact) = sphere.contact(x) {
