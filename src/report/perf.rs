@@ -577,7 +577,11 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         let cases = sweep(config, &progress);
         let mut md = String::new();
         for c in cases {
-            writeln!(md, "{} {}²: {}", c.method, c.n, c.serial.cell()).ok();
+            write!(md, "{} {}²: {}", c.method, c.n, c.serial.cell()).ok();
+            if let Some(p) = c.parallel {
+                write!(md, "; parallel {}", p.cell()).ok();
+            }
+            writeln!(md, "; guard {}", c.guard.as_deref().unwrap_or("silent")).ok();
         }
         return Ok(md);
     }

@@ -248,7 +248,10 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
     // By 64 iterations Jacobi may already sit at its f32 fixed point (the
     // error then stays the same to the last bit), so 512 only must not be
     // worse.
-    assert!(jacobi[1] < jacobi[0] && jacobi[2] <= jacobi[1], "{jacobi:?}");
+    assert!(
+        jacobi[1] < jacobi[0] && jacobi[2] <= jacobi[1],
+        "{jacobi:?}"
+    );
     assert!(jacobi[2] < 1e-4, "{jacobi:?}");
     let auto: Vec<f64> = [8, 64, 512]
         .map(|k| error(ImplicitConfig::chebyshev_auto(k)))

@@ -308,21 +308,26 @@ pub fn step(
                 // chunk order, so the total is the same on any thread count.
                 // Copies, so the loop keeps them in registers.
                 let (measure, omega, pass) = (k < delay, omega, &pass);
-                for_chunks2(x, &mut ws.x_prev, &mut ws.chunk_sums, move |start, x, prev| {
-                    let mut update = 0.0f64;
-                    for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
-                        let (g, d) = pass.gradient(start + j, *xi);
-                        let step = g * d;
-                        let x_hat = *xi - step;
-                        let before = *prev;
-                        *prev = *xi;
-                        *xi = omega * (x_hat - before) + before;
-                        if measure {
-                            update += f64::from(step.length_squared());
+                for_chunks2(
+                    x,
+                    &mut ws.x_prev,
+                    &mut ws.chunk_sums,
+                    move |start, x, prev| {
+                        let mut update = 0.0f64;
+                        for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
+                            let (g, d) = pass.gradient(start + j, *xi);
+                            let step = g * d;
+                            let x_hat = *xi - step;
+                            let before = *prev;
+                            *prev = *xi;
+                            *xi = omega * (x_hat - before) + before;
+                            if measure {
+                                update += f64::from(step.length_squared());
+                            }
                         }
-                    }
-                    update
-                });
+                        update
+                    },
+                );
                 if k < delay {
                     let update: f64 = ws.chunk_sums.iter().sum();
                     ws.update_norms.push(update.sqrt());
