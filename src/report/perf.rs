@@ -333,8 +333,9 @@ pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
 }
 
 /// Time per `App::update` (one fixed step of every cloth) with `cloths` lab
-/// cloths (21², Chebyshev 32) under `MinimalPlugins` (Bevy's default task
-/// pools) and the cloth plugins.
+/// cloths (21², Chebyshev 32) under `MinimalPlugins` and the cloth plugins.
+/// Bevy's task pools are set up once per process: after [`run`] has made
+/// the compute pool, the app uses that one.
 pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
     use crate::{Cloth, ClothParams, ImplicitSolver};
     let mut app = App::new();
@@ -359,6 +360,29 @@ pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
         app.update();
     }
     time_runs(config.budget, config.min_samples, || app.update())
+}
+
+/// At 21²: the time of 32 spring passes alone and of a whole Chebyshev 32
+/// step (seconds), or `None` when 21 is not among the sizes.
+fn spring_pass_share(config: &PerfConfig) -> Option<(f64, f64)> {
+    if !config.sizes.contains(&21) {
+        return None;
+    }
+    let params = StepParams::LAB;
+    let model = scale_model(21);
+    let start = warm_state(&model, &params);
+    let mut coeffs = Vec::new();
+    crate::solver::stiffness_coeffs(&model, &params.stiffness, &mut coeffs);
+    let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
+    let springs = time_runs(config.budget, config.min_samples, || {
+        for _ in 0..32 {
+            crate::solver::spring_terms(&model, &start.positions, &coeffs, &mut terms);
+            std::hint::black_box(&mut terms);
+        }
+    });
+    let method = AnyMethod::Implicit(ImplicitConfig::chebyshev(32, 0.995));
+    let (step, _) = time_method(config, method, &model, &params, &start);
+    Some((springs.median, step.median))
 }
 
 /// The sparse CG step against its parts, on the assignment's cloth.
@@ -461,6 +485,9 @@ pub struct Limits {
     pub memory_gbs: f64,
     /// The same triad over arrays that fit in L1/L2 (3 × 16 KiB), GB/s.
     pub cache_gbs: f64,
+    /// The same triad over arrays past L2 but within a last-level cache
+    /// (3 × 2 MiB), GB/s.
+    pub l3_gbs: f64,
     /// Scalar `f32` multiply–adds, 8 independent chains, GFLOP/s.
     pub scalar_gflops: f64,
     /// 4-lane `Vec4` multiply–adds, 8 independent chains, GFLOP/s: the
@@ -533,6 +560,11 @@ pub fn limits(config: &PerfConfig) -> Limits {
     Limits {
         memory_gbs: triad(config.stream_len, config.budget, config.min_samples),
         cache_gbs: triad(4096, config.budget, config.min_samples),
+        l3_gbs: triad(
+            (1 << 19).min(config.stream_len),
+            config.budget,
+            config.min_samples,
+        ),
         scalar_gflops: (2 * OPS) as f64 / scalar.median / 1e9,
         simd_gflops: (2 * 4 * OPS) as f64 / simd.median / 1e9,
     }
@@ -588,6 +620,8 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     progress("limits");
     let limits = limits(config);
     let cases = sweep(config, &progress);
+    progress("spring pass at 21²");
+    let split = spring_pass_share(config);
     progress("many cloths");
     let one_app = many_cloths(config, 1);
     let many_app = many_cloths(config, config.many);
@@ -689,6 +723,20 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         writeln!(w).ok();
     }
 
+    if let Some((springs, step)) = split {
+        writeln!(
+            w,
+            "The lab step at 21² (Chebyshev 32): {} per step, of which the 32 spring passes take \
+             {} ({:.0} %) and the 32 vertex passes (gather and update) most of the rest. \
+             The target was 100 µs.",
+            human(step),
+            human(springs),
+            100.0 * springs / step
+        )
+        .ok();
+        writeln!(w).ok();
+    }
+
     writeln!(w, "## Many cloths").ok();
     writeln!(w).ok();
     let single = cases
@@ -697,8 +745,9 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         .map(|c| c.serial.median);
     writeln!(
         w,
-        "One `App::update` (one fixed step of every cloth; `MinimalPlugins` + `ClothPlugins`, \
-         Bevy's default task pools) with lab cloths of 21², Chebyshev 32:"
+        "One `App::update` (one fixed step of every cloth, guard and stats included; \
+         `MinimalPlugins` + `ClothPlugins`, the compute pool at {threads} threads) with lab \
+         cloths of 21², Chebyshev 32:"
     )
     .ok();
     writeln!(w).ok();
@@ -723,6 +772,15 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
             many_app.median / (config.many as f64 * single),
             config.many,
             human(single)
+        )
+        .ok();
+        writeln!(w).ok();
+        writeln!(
+            w,
+            "With one cloth, an update costs {} more than the bare step: the fixed cost of a \
+             frame (Bevy's schedules, the cloth systems, the divergence guard's backup and \
+             checks, the stats), paid once per update however many cloths there are.",
+            human((one_app.median - single).max(0.0))
         )
         .ok();
         writeln!(w).ok();
@@ -759,10 +817,17 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     writeln!(
         w,
-        "One core, simple kernels: a triad `a = b + s·c` streams {:.1} GB/s from memory and \
-         {:.1} GB/s from cache (3 × 16 KiB); multiply–adds in 8 independent chains run at \
-         {:.2} GFLOP/s scalar and {:.2} GFLOP/s in 4-lane `Vec4`.",
-        limits.memory_gbs, limits.cache_gbs, limits.scalar_gflops, limits.simd_gflops
+        "One core, simple kernels: a triad `a = b + s·c` streams {:.1} GB/s from memory \
+         (3 × {} MiB), {:.1} GB/s from the last-level cache (3 × 2 MiB) and {:.1} GB/s from \
+         L1/L2 (3 × 16 KiB); multiply–adds in 8 independent chains run at {:.2} GFLOP/s \
+         scalar and {:.2} GFLOP/s in 4-lane `Vec4` (this CPU also has AVX-512, 4× wider, \
+         which a baseline x86-64 build does not use).",
+        limits.memory_gbs,
+        (4 * config.stream_len) >> 20,
+        limits.l3_gbs,
+        limits.cache_gbs,
+        limits.scalar_gflops,
+        limits.simd_gflops
     )
     .ok();
     writeln!(w).ok();
@@ -771,10 +836,11 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         "Per step, a spring-loop method must at least move, per iteration, 40 B per spring \
          (its record, coefficients and term), 20 B per incidence (an index and a term; two per \
          spring) and 88 B per vertex, and do about 14 flops per spring, 3 per incidence and 21 \
-         per vertex. Its limit is the larger of bytes / bandwidth (cache bandwidth while the \
-         working set fits in 1 MiB, else memory) and flops / SIMD rate; the table gives the \
-         measured single-thread median as a multiple of that limit, and the limit as a \
-         fraction of the measured time."
+         per vertex. Its limit is the larger of bytes / bandwidth and flops / SIMD rate, with \
+         the bandwidth of where one iteration's working set fits (up to 512 KiB: L1/L2; up to \
+         the last-level cache's {} MiB: last-level cache; else memory); the table gives the limit as a fraction of \
+         the measured single-thread median (100 % would be at the limit).",
+        last_level_cache() >> 20
     )
     .ok();
     writeln!(w).ok();
@@ -792,8 +858,10 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
             } else {
                 bytes / 32.0
             };
-            let bandwidth = if per_iteration < (1 << 20) as f64 {
+            let bandwidth = if per_iteration <= (512 << 10) as f64 {
                 limits.cache_gbs
+            } else if per_iteration <= last_level_cache() as f64 {
+                limits.l3_gbs
             } else {
                 limits.memory_gbs
             };
@@ -817,11 +885,12 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         w,
         "The sparse CG step's limit is its 25 products: each streams the {} nonzeros (8 B \
          value + 8 B row index) = {:.1} MB, {:.2} ms at memory bandwidth for 25; measured \
-         {}.",
+         {}: {:.0} % of the limit.",
         cg.nonzeros,
         16.0 * cg.nonzeros as f64 / 1e6,
         25.0 * 16.0 * cg.nonzeros as f64 / (limits.memory_gbs * 1e9) * 1e3,
-        human(cg.step.median)
+        human(cg.step.median),
+        100.0 * 25.0 * 16.0 * cg.nonzeros as f64 / (limits.memory_gbs * 1e9) / cg.step.median
     )
     .ok();
     writeln!(w).ok();
@@ -869,6 +938,21 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     std::fs::write(config.out_dir.join("perf.md"), &md)?;
     chart(&config.out_dir.join("perf-scaling.svg"), &cases).map_err(std::io::Error::other)?;
     Ok(md)
+}
+
+/// The last-level cache's size in bytes from sysfs (32 MiB if unknown).
+fn last_level_cache() -> usize {
+    (0..8)
+        .rev()
+        .find_map(|i| {
+            let size = std::fs::read_to_string(format!(
+                "/sys/devices/system/cpu/cpu0/cache/index{i}/size"
+            ))
+            .ok()?;
+            let kib: usize = size.trim().strip_suffix('K')?.parse().ok()?;
+            Some(kib << 10)
+        })
+        .unwrap_or(32 << 20)
 }
 
 fn cpu_name() -> String {

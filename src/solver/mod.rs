@@ -191,7 +191,7 @@ pub(crate) const CHUNK: usize = 4096;
 
 /// Below this many elements the chunked loops run serially: a task per
 /// chunk costs more than it saves.
-pub const PARALLEL_MIN: usize = 16_384;
+pub const PARALLEL_MIN: usize = 32_768;
 
 static PARALLEL: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
 

@@ -191,8 +191,11 @@ fn every_method_is_deterministic() {
 fn parallel_chunks_give_the_same_bits_as_serial() {
     use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
     ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
-    // 131×131 = 17 161 vertices: above the parallel threshold.
-    let scenario = Scenario::grid(131, 8000.0, StepParams::LAB.dt).with_steps(3);
+    // 182×182 = 33 124 vertices (and about 3× as many springs): both the
+    // spring and the vertex loops are above the parallel threshold.
+    let n = 182;
+    assert!(n * n >= bevy_cloth::solver::PARALLEL_MIN);
+    let scenario = Scenario::grid(n, 8000.0, StepParams::LAB.dt).with_steps(3);
     let bits = |s: &ClothState| -> Vec<u32> {
         s.positions
             .iter()
