@@ -69,6 +69,35 @@ fn adjacency_lists_every_spring_from_both_ends() {
 }
 
 #[test]
+fn gathers_by_side_and_padded_list_the_same_springs() {
+    // The lab's grid: at most 3 springs per side, so the padded rows exist.
+    let model = ClothBuilder::lab_grid(7).build().unwrap();
+    let topo = model.topology();
+    let adjacency = topo.adjacency();
+    let padded = adjacency.padded().expect("the lab grid pads to 4");
+    let pad = topo.springs().len() as u32;
+    for (i, rows) in padded.iter().enumerate() {
+        let (starts, ends) = adjacency.by_side(i);
+        assert_eq!(starts.len() + ends.len(), adjacency.degree(i));
+        for &e in starts {
+            assert_eq!(topo.springs()[e as usize].a as usize, i);
+        }
+        for &e in ends {
+            assert_eq!(topo.springs()[e as usize].b as usize, i);
+        }
+        for (side, list) in [starts, ends].into_iter().enumerate() {
+            let row = rows[side];
+            assert_eq!(&row[..list.len()], list);
+            assert!(row[list.len()..].iter().all(|&e| e == pad));
+        }
+    }
+    // With shear and bending springs a vertex has up to 6 on a side: the
+    // solvers use the unpadded rows.
+    let assignment = ClothBuilder::assignment(6, 6).build().unwrap();
+    assert!(assignment.topology().adjacency().padded().is_none());
+}
+
+#[test]
 fn invalid_input_gets_typed_errors() {
     let tri = || vec![Vec3::ZERO, Vec3::X, Vec3::Y];
     assert_eq!(

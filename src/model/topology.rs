@@ -67,6 +67,11 @@ pub struct Adjacency {
     /// read 4 bytes per incidence and add or subtract without a multiply.
     signed: Vec<u32>,
     split: Vec<u32>,
+    /// When no vertex has more than 4 springs on either side (the lab's
+    /// triangle grids: 3 and 3): per vertex, its start and end springs
+    /// padded to 4 each with the index `springs.len()` (a gather reads a
+    /// zero term there). Fixed-length gathers: no loop bounds to predict.
+    padded: Vec<[[u32; 4]; 2]>,
 }
 
 impl Adjacency {
@@ -116,12 +121,38 @@ impl Adjacency {
                     .map(|inc| inc.spring),
             );
         }
+        let pad = springs.len() as u32;
+        let mut padded = Vec::with_capacity(vertex_count);
+        for i in 0..vertex_count {
+            let (start, mid, end) = (
+                offsets[i] as usize,
+                split[i] as usize,
+                offsets[i + 1] as usize,
+            );
+            if mid - start > 4 || end - mid > 4 {
+                padded.clear();
+                break;
+            }
+            let mut row = [[pad; 4]; 2];
+            row[0][..mid - start].copy_from_slice(&signed[start..mid]);
+            row[1][..end - mid].copy_from_slice(&signed[mid..end]);
+            padded.push(row);
+        }
         Self {
             offsets,
             incidences,
             signed,
             split,
+            padded,
         }
+    }
+
+    /// Per vertex, its start and end springs each padded to 4 with the
+    /// index `springs.len()`, or `None` if some vertex has more than 4 on a
+    /// side. A gather over it needs one zero term past the last spring.
+    #[inline]
+    pub fn padded(&self) -> Option<&[[[u32; 4]; 2]]> {
+        (!self.padded.is_empty()).then_some(&self.padded[..])
     }
 
     /// The springs of vertex `i` split by side: those that start at `i`

@@ -149,8 +149,10 @@ struct VertexPass<'a> {
     mass_term: &'a [f32],
     inv_diag: &'a [f32],
     base_diag: &'a [f32],
+    /// One term per spring, then a zero (the padding's target).
     terms: &'a [Vec3A],
     adjacency: &'a Adjacency,
+    padded: Option<&'a [[[u32; 4]; 2]]>,
     pinned: &'a [bool],
     spheres: &'a [PenaltySphere],
 }
@@ -161,17 +163,28 @@ impl VertexPass<'_> {
     /// is not zeroed, but its inverse diagonal is 0).
     #[inline(always)]
     fn gradient(&self, i: usize, xi: Vec3A) -> (Vec3A, f32) {
-        // Two accumulators: two shorter chains of dependent additions.
-        let (starts, ends) = self.adjacency.by_side(i);
-        let mut plus = Vec3A::ZERO;
-        for &e in starts {
-            plus += self.terms[e as usize];
-        }
-        let mut minus = Vec3A::ZERO;
-        for &e in ends {
-            minus += self.terms[e as usize];
-        }
-        let mut g = (xi - self.target[i]) * self.mass_term[i] + (plus - minus);
+        let springs = match self.padded {
+            // Fixed length, summed as a tree: short chains of additions.
+            Some(padded) => {
+                let [p, m] = &padded[i];
+                let t = |e: u32| self.terms[e as usize];
+                ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3])))
+                    - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
+            }
+            None => {
+                let (starts, ends) = self.adjacency.by_side(i);
+                let mut plus = Vec3A::ZERO;
+                for &e in starts {
+                    plus += self.terms[e as usize];
+                }
+                let mut minus = Vec3A::ZERO;
+                for &e in ends {
+                    minus += self.terms[e as usize];
+                }
+                plus - minus
+            }
+        };
+        let mut g = (xi - self.target[i]) * self.mass_term[i] + springs;
         let mut inv_diag = self.inv_diag[i];
         if !self.spheres.is_empty() && !self.pinned[i] {
             let mut diag = self.base_diag[i];
@@ -225,7 +238,9 @@ pub fn step(
     let adjacency = model.topology().adjacency();
     let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
     stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-    ws.terms.resize(springs.len(), Vec3A::ZERO);
+    // One term per spring and a zero past them, which padded gathers read.
+    ws.terms.clear();
+    ws.terms.resize(springs.len() + 1, Vec3A::ZERO);
     let ClothState {
         positions: x,
         velocities: v,
@@ -271,7 +286,7 @@ pub fn step(
     };
     ws.update_norms.clear();
     for k in 0..config.iterations {
-        spring_terms(model, x, &ws.coeffs, &mut ws.terms);
+        spring_terms(model, x, &ws.coeffs, &mut ws.terms[..springs.len()]);
         let pass = VertexPass {
             target: &ws.target,
             mass_term: &ws.mass_term,
@@ -279,6 +294,7 @@ pub fn step(
             base_diag: &ws.base_diag,
             terms: &ws.terms,
             adjacency,
+            padded: adjacency.padded(),
             pinned,
             spheres,
         };
@@ -337,7 +353,7 @@ pub fn step(
     }
 
     // Residual at the final iterate: the gradient over free vertices.
-    spring_terms(model, x, &ws.coeffs, &mut ws.terms);
+    spring_terms(model, x, &ws.coeffs, &mut ws.terms[..springs.len()]);
     let pass = VertexPass {
         target: &ws.target,
         mass_term: &ws.mass_term,
@@ -345,6 +361,7 @@ pub fn step(
         base_diag: &ws.base_diag,
         terms: &ws.terms,
         adjacency,
+        padded: adjacency.padded(),
         pinned,
         spheres,
     };

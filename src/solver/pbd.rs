@@ -52,7 +52,9 @@ impl Default for PbdConfig {
 /// Scratch buffers of the PBD solver, sized on first use.
 #[derive(Clone, Debug, Default)]
 pub struct PbdWorkspace {
-    /// Per spring: the midpoint and half the rest-length vector.
+    /// Per spring: the positions it proposes for its `a` and its `b`
+    /// (midpoint ± half the rest-length vector), then a zero pair that
+    /// padded gathers read.
     proposals: Vec<[Vec3A; 2]>,
     /// Per spring `[0, −L/2]` (see `spring_scales`).
     coeffs: Vec<[f32; 2]>,
@@ -77,7 +79,8 @@ pub fn step(
     let springs = model.topology().springs();
     let adjacency = model.topology().adjacency();
     let pinned = model.pinned();
-    ws.proposals.resize(springs.len(), [Vec3A::ZERO; 2]);
+    ws.proposals.clear();
+    ws.proposals.resize(springs.len() + 1, [Vec3A::ZERO; 2]);
     ws.coeffs.clear();
     ws.coeffs
         .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
@@ -109,22 +112,38 @@ pub fn step(
         let proposals = &mut ws.proposals;
         spring_scales(springs, &ws.coeffs, x, |e, d, half| {
             let s = &springs[e];
-            proposals[e] = [0.5 * (x[s.a as usize] + x[s.b as usize]), d * half];
+            let mid = 0.5 * (x[s.a as usize] + x[s.b as usize]);
+            let half = d * half;
+            proposals[e] = [mid + half, mid - half];
         });
+        let proposals = &ws.proposals;
+        let padded = adjacency.padded();
         for i in 0..n {
             if pinned[i] {
                 continue;
             }
-            let mut sum = SELF_WEIGHT * x[i];
-            let (starts, ends) = adjacency.by_side(i);
-            for &e in starts {
-                let [mid, half] = ws.proposals[e as usize];
-                sum += mid + half;
-            }
-            for &e in ends {
-                let [mid, half] = ws.proposals[e as usize];
-                sum += mid - half;
-            }
+            let own = SELF_WEIGHT * x[i];
+            let sum = match padded {
+                // Fixed length, summed as a tree (see the implicit solver).
+                Some(padded) => {
+                    let [p, m] = &padded[i];
+                    let a = |e: u32| proposals[e as usize][0];
+                    let b = |e: u32| proposals[e as usize][1];
+                    own + (((a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])))
+                        + ((b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3]))))
+                }
+                None => {
+                    let (starts, ends) = adjacency.by_side(i);
+                    let mut sum = own;
+                    for &e in starts {
+                        sum += proposals[e as usize][0];
+                    }
+                    for &e in ends {
+                        sum += proposals[e as usize][1];
+                    }
+                    sum
+                }
+            };
             let new = sum * ws.inv_weight[i];
             v[i] += (new - x[i]) * inv_dt;
             x[i] = new;
