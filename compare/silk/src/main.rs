@@ -10,11 +10,13 @@
 //! (Jacobi strain limiting) and its implicit Chebyshev method, 32 iterations
 //! each, with the total mass 441 and `k = 8000` of the lab.
 //!
-//! Every method runs `WARM` steps from rest and then `TIMED` steps, each
-//! timed alone; the table gives the median and the quartiles, the ratio of
-//! medians (bevy_silk / bevy_cloth), and each side's largest relative edge
-//! stretch `(l − L)/L` at the end — how far each is from satisfying its
-//! edges after the same simulated time.
+//! Every method runs `WARM` steps from rest; then the step from that state
+//! is timed again and again (the state restored, untimed, before each) for
+//! at least `BUDGET` and `MIN_SAMPLES` samples; the table gives the median
+//! and the quartiles and the ratio of medians (bevy_silk / bevy_cloth).
+//! Each side then runs `FURTHER` more steps from the warm state, and the
+//! table gives its largest relative edge stretch `(l − L)/L` — how far each
+//! is from satisfying its edges after the same simulated time.
 //!
 //!     cargo run --release --manifest-path compare/silk/Cargo.toml [-- --out FILE] [--sizes 21,51]
 
@@ -33,7 +35,9 @@ use bevy_silk::prelude::{StickGeneration, StickLen, StickMode};
 use bevy_silk::vertex_anchor::VertexAnchor;
 
 const WARM: usize = 10;
-const TIMED: usize = 30;
+const FURTHER: usize = 30;
+const MIN_SAMPLES: usize = 15;
+const BUDGET: f64 = 1.5;
 const ITERATIONS: u32 = 32;
 
 /// Median, first and third quartile of per-step times, in seconds.
@@ -54,18 +58,17 @@ fn timing(mut samples: Vec<f64>) -> Timing {
     }
 }
 
-/// Runs `WARM` untimed and `TIMED` timed steps of `step`.
-fn run(mut step: impl FnMut()) -> Timing {
-    for _ in 0..WARM {
+/// Times `step` from the same state again and again: `restore` (untimed)
+/// puts the state back before each sample.
+fn run(mut restore: impl FnMut(), mut step: impl FnMut()) -> Timing {
+    let start = Instant::now();
+    let mut samples = Vec::new();
+    while samples.len() < MIN_SAMPLES || start.elapsed().as_secs_f64() < BUDGET {
+        restore();
+        let t = Instant::now();
         step();
+        samples.push(t.elapsed().as_secs_f64());
     }
-    let samples = (0..TIMED)
-        .map(|_| {
-            let t = Instant::now();
-            step();
-            t.elapsed().as_secs_f64()
-        })
-        .collect();
     timing(samples)
 }
 
@@ -85,10 +88,25 @@ struct Ours {
 
 fn ours(model: &ClothModel, mut step: impl FnMut(&mut ClothState)) -> Ours {
     let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
-    let timing = run(|| {
+    for _ in 0..WARM {
         step(&mut state);
-        black_box(&state);
-    });
+    }
+    let warm = state.clone();
+    let mut timed = warm.clone();
+    let timing = {
+        let timed = std::cell::RefCell::new(&mut timed);
+        let step = std::cell::RefCell::new(&mut step);
+        run(
+            || timed.borrow_mut().copy_from(&warm),
+            || {
+                (step.borrow_mut())(&mut timed.borrow_mut());
+                black_box(&timed);
+            },
+        )
+    };
+    for _ in 0..FURTHER {
+        step(&mut state);
+    }
     Ours {
         timing,
         stretch: max_stretch(model, &state.positions),
@@ -121,11 +139,34 @@ fn silk(model: &ClothModel, params: &StepParams) -> (Timing, f32) {
     );
     let dt = params.dt as f32;
     let gravity = Vec3Silk::from_array(params.gravity.to_array()) * dt * dt;
-    let timing = run(|| {
+    let step = |cloth: &mut SilkCloth| {
         cloth.update_points(params.damping, gravity);
         cloth.update_sticks(ITERATIONS as u8);
-        black_box(&cloth);
-    });
+    };
+    for _ in 0..WARM {
+        step(&mut cloth);
+    }
+    let warm = cloth.clone();
+    let mut timed = cloth.clone();
+    let timing = {
+        let timed = std::cell::RefCell::new(&mut timed);
+        run(
+            || {
+                let mut t = timed.borrow_mut();
+                t.current_point_positions
+                    .copy_from_slice(&warm.current_point_positions);
+                t.previous_point_positions
+                    .copy_from_slice(&warm.previous_point_positions);
+            },
+            || {
+                step(&mut timed.borrow_mut());
+                black_box(&timed);
+            },
+        )
+    };
+    for _ in 0..FURTHER {
+        step(&mut cloth);
+    }
     let x = &cloth.current_point_positions;
     let stretch = cloth
         .stick_lengths
@@ -181,8 +222,7 @@ fn main() {
         let mut cheb_ws = ImplicitWorkspace::default();
         let config = ImplicitConfig::chebyshev(ITERATIONS, 0.995);
         let cheb = ours(&model, |state| {
-            implicit::step(&model, state, &params, &config, &[], &mut cheb_ws)
-                .expect("valid step");
+            implicit::step(&model, state, &params, &config, &[], &mut cheb_ws).expect("valid step");
         });
         assert!(pbd.finite && cheb.finite, "bevy_cloth diverged at {n}²");
         let line = format!(
@@ -208,9 +248,10 @@ fn main() {
     }
     let doc = format!(
         "<!-- written by `cargo run --release --manifest-path compare/silk/Cargo.toml` -->\n\
-         Per step, {ITERATIONS} iterations, single thread, {WARM} warm-up steps then the median of \
-         {TIMED} timed steps; stretch after {} steps.\n\n{table}",
-        WARM + TIMED
+         Per step, {ITERATIONS} iterations, single thread: the step from the state after \
+         {WARM} steps from rest, timed for at least {BUDGET} s and {MIN_SAMPLES} samples; \
+         stretch after {} steps.\n\n{table}",
+        WARM + FURTHER
     );
     if let Some(dir) = std::path::Path::new(&out).parent() {
         std::fs::create_dir_all(dir).expect("create the output folder");
