@@ -112,7 +112,8 @@
 //! - Every iteration of the spring-based methods is two passes: one over
 //!   springs, four at a time in packed SIMD (`solver::spring_scales`), which
 //!   computes each spring's term once; one over vertices, which gathers its
-//!   springs' terms ([`model::Adjacency::by_side`]: no scattered writes, no
+//!   springs' terms ([`model::Adjacency::by_side`], or fixed-length
+//!   [`model::Adjacency::padded`] rows: no scattered writes, no
 //!   atomics) and updates the vertex in the same loop. No allocation or
 //!   hashing per step; sparse patterns and factorisations are reused.
 //! - Parallelism: cloths step in parallel across Bevy's compute pool

@@ -48,7 +48,7 @@ pub struct GuardBounds {
     /// A scene whose physics stretches springs further than this (huge loads
     /// on soft springs) needs a larger bound.
     pub max_stretch: Option<f32>,
-    /// Largest allowed total energy (see [`energy`](super::energy)); `None`
+    /// Largest allowed total energy (see [`energy`]); `None`
     /// (the default) checks none. It depends on the scene, so only its
     /// author can set it.
     pub max_energy: Option<f64>,
