@@ -331,11 +331,7 @@ pub fn estimate_rho(
 /// Runs the report and writes its files. Returns the markdown.
 pub fn run(config: &ReportConfig) -> std::io::Result<String> {
     std::fs::create_dir_all(&config.out_dir)?;
-    let _ = plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        epaint_default_fonts::UBUNTU_LIGHT,
-    );
+    register_chart_font();
     let mut md = String::new();
     writeln!(md, "# Error against run time").ok();
     writeln!(md).ok();
@@ -713,56 +709,90 @@ fn chart(path: &Path, title: &str, points: &[Point], x_label: &str) -> Result<()
     } else {
         (y_lo.max(1e-12) / 2.0, y_hi.max(1.0) * 2.0)
     };
-    let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc(x_label)
-        .y_desc("relative error")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()
-        .map_err(|e| e.to_string())?;
     let mut families: Vec<&str> = Vec::new();
     for p in &finite {
         if !families.contains(&p.method.family()) {
             families.push(p.method.family());
         }
     }
-    for (i, family) in families.iter().enumerate() {
+    let series: Vec<(&str, Vec<(f64, f64)>)> = families
+        .iter()
+        .map(|family| {
+            let mut points: Vec<(f64, f64)> = finite
+                .iter()
+                .filter(|p| p.method.family() == *family)
+                .map(|p| (p.micros, p.error))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            (*family, points)
+        })
+        .collect();
+    log_log_chart(
+        path,
+        (900, 560),
+        title,
+        (x_label, "relative error"),
+        (x_lo..x_hi, y_lo..y_hi),
+        &series,
+        SeriesLabelPosition::UpperRight,
+    )
+}
+
+/// Registers the charts' font (a font egui ships), for every chart.
+pub(crate) fn register_chart_font() {
+    let _ = plotters::style::register_font(
+        "sans-serif",
+        FontStyle::Normal,
+        epaint_default_fonts::UBUNTU_LIGHT,
+    );
+}
+
+/// Draws named series of points as lines with dots on log–log axes over
+/// `ranges` (x, y), with a legend, into an SVG file.
+pub(crate) fn log_log_chart(
+    path: &Path,
+    size: (u32, u32),
+    title: &str,
+    (x_desc, y_desc): (&str, &str),
+    (x_range, y_range): (std::ops::Range<f64>, std::ops::Range<f64>),
+    series: &[(&str, Vec<(f64, f64)>)],
+    legend: SeriesLabelPosition,
+) -> Result<(), String> {
+    let root = SVGBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, (label, points)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
-        let mut series: Vec<(f64, f64)> = finite
-            .iter()
-            .filter(|p| p.method.family() == *family)
-            .map(|p| (p.micros, p.error))
-            .collect();
-        series.sort_by(|a, b| a.0.total_cmp(&b.0));
         chart
-            .draw_series(LineSeries::new(series.clone(), color.stroke_width(2)))
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
             .map_err(|e| e.to_string())?
-            .label(*family)
+            .label(*label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
             });
         chart
-            .draw_series(
-                series
-                    .iter()
-                    .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
-            )
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
             .map_err(|e| e.to_string())?;
     }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend)
         .draw()
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())?;

@@ -251,6 +251,8 @@ pub fn sweep_methods() -> Vec<(&'static str, AnyMethod, bool)> {
 pub struct Case {
     /// Table name of the method.
     pub method: &'static str,
+    /// The method and its settings.
+    pub solver: AnyMethod,
     /// Grid side.
     pub n: usize,
     /// Single-thread time per step.
@@ -322,6 +324,7 @@ pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
                 .then(|| time_method(config, method, &model, &params, &start).0);
             cases.push(Case {
                 method: name,
+                solver: method,
                 n,
                 serial,
                 parallel,
@@ -570,9 +573,11 @@ pub fn limits(config: &PerfConfig) -> Limits {
     }
 }
 
-/// Bytes and flops a step of a spring-loop method must at least move and
-/// do, from the counts of its loops (see the page for the per-item model).
-pub fn work_per_step(method: &str, model: &ClothModel) -> Option<(f64, f64)> {
+/// For a spring-loop method: its iterations per step, and the bytes and
+/// flops one iteration must at least move and do, from the counts of its
+/// loops (see the page for the per-item model). `None` for the sparse
+/// methods, whose work is faer's.
+pub fn work_per_iteration(method: &AnyMethod, model: &ClothModel) -> Option<(u32, f64, f64)> {
     let v = model.vertex_count() as f64;
     let s = model.topology().springs().len() as f64;
     // Per iteration: a spring reads its record (16 B), coefficients (8 B)
@@ -585,21 +590,19 @@ pub fn work_per_step(method: &str, model: &ClothModel) -> Option<(f64, f64)> {
         40.0 * s + 2.0 * 20.0 * s + 88.0 * v,
         14.0 * s + 6.0 * s + 21.0 * v,
     );
-    match method {
-        "Jacobi 32" | "Chebyshev 32" | "PBD 32" => Some((32.0 * iteration.0, 32.0 * iteration.1)),
-        "symplectic" => Some(iteration),
-        _ => None,
-    }
+    let iterations = match method {
+        AnyMethod::Implicit(c) => c.iterations,
+        AnyMethod::Pbd(c) => c.iterations,
+        AnyMethod::Symplectic => 1,
+        AnyMethod::Linear(_) | AnyMethod::Exact(_) => return None,
+    };
+    Some((iterations, iteration.0, iteration.1))
 }
 
 /// Runs the page and writes its files. Returns the markdown.
 pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<String> {
     std::fs::create_dir_all(&config.out_dir)?;
-    let _ = plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        epaint_default_fonts::UBUNTU_LIGHT,
-    );
+    super::register_chart_font();
     // Two compute threads for the parallel columns (Bevy's default plugin
     // would give this 2-core machine one).
     let pool = ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
@@ -852,12 +855,11 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w, "|---|---|---|---|---|---|---|").ok();
     for c in &cases {
         let model = scale_model(c.n);
-        if let Some((bytes, flops)) = work_per_step(c.method, &model) {
-            let per_iteration = if c.method == "symplectic" {
-                bytes
-            } else {
-                bytes / 32.0
-            };
+        if let Some((iterations, per_iteration, flops)) = work_per_iteration(&c.solver, &model) {
+            let (bytes, flops) = (
+                per_iteration * f64::from(iterations),
+                flops * f64::from(iterations),
+            );
             let bandwidth = if per_iteration <= (512 << 10) as f64 {
                 limits.cache_gbs
             } else if per_iteration <= last_level_cache() as f64 {
@@ -968,72 +970,31 @@ fn cpu_name() -> String {
 }
 
 fn chart(path: &Path, cases: &[Case]) -> Result<(), String> {
-    let points: Vec<(f64, f64)> = cases
-        .iter()
-        .map(|c| ((c.n * c.n) as f64, c.serial.median * 1e3))
-        .collect();
-    let (x_lo, x_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
-        (lo.min(p.0), hi.max(p.0))
-    });
-    let (y_lo, y_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
-        (lo.min(p.1), hi.max(p.1))
-    });
-    if points.is_empty() {
+    let point = |c: &Case| ((c.n * c.n) as f64, c.serial.median * 1e3);
+    let (x_lo, x_hi, y_lo, y_hi) = cases.iter().map(point).fold(
+        (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64),
+        |(x_lo, x_hi, y_lo, y_hi), (x, y)| (x_lo.min(x), x_hi.max(x), y_lo.min(y), y_hi.max(y)),
+    );
+    if cases.is_empty() {
         return Ok(());
     }
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "Time per step against vertex count (single thread, log–log)",
-            ("sans-serif", 20),
-        )
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d(
-            (x_lo / 1.3..x_hi * 1.3).log_scale(),
-            (y_lo / 2.0..y_hi * 2.0).log_scale(),
-        )
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc("vertices")
-        .y_desc("ms per step")
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    for (i, (name, _, _)) in sweep_methods().iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let series: Vec<(f64, f64)> = cases
-            .iter()
-            .filter(|c| c.method == *name)
-            .map(|c| ((c.n * c.n) as f64, c.serial.median * 1e3))
-            .collect();
-        if series.is_empty() {
-            continue;
-        }
-        chart
-            .draw_series(LineSeries::new(series.clone(), color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(*name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(series.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| e.to_string())?;
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
-    Ok(())
+    let series: Vec<(&str, Vec<(f64, f64)>)> = sweep_methods()
+        .iter()
+        .map(|(name, _, _)| {
+            let points = cases.iter().filter(|c| c.method == *name).map(point);
+            (*name, points.collect::<Vec<_>>())
+        })
+        .filter(|(_, points)| !points.is_empty())
+        .collect();
+    super::log_log_chart(
+        path,
+        (900, 600),
+        "Time per step against vertex count (single thread, log–log)",
+        ("vertices", "ms per step"),
+        (x_lo / 1.3..x_hi * 1.3, y_lo / 2.0..y_hi * 2.0),
+        &series,
+        SeriesLabelPosition::UpperLeft,
+    )
 }
 
 #[cfg(test)]

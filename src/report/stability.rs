@@ -100,11 +100,7 @@ fn cell(o: &Outcome) -> String {
 /// markdown.
 pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     std::fs::create_dir_all(&config.out_dir)?;
-    let _ = plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        epaint_default_fonts::UBUNTU_LIGHT,
-    );
+    super::register_chart_font();
     let methods = map_methods();
     let labels: Vec<String> = methods.iter().map(AnyMethod::label).collect();
     let total = config.stiffnesses.len() * config.time_steps.len()

@@ -102,19 +102,10 @@ impl Default for ImplicitConfig {
 #[derive(Clone, Debug, Default)]
 pub struct ImplicitWorkspace {
     x_tilde: Vec<Vec3A>,
-    /// `x̃ + dt²·g`: the gradient's mass term is `m/dt²·(x − target)`.
-    target: Vec<Vec3A>,
-    /// `m/dt²` per vertex.
-    mass_term: Vec<f32>,
     /// Per spring `[k, kL]` (see `spring_scales`).
     coeffs: Vec<[f32; 2]>,
-    /// Per spring: its gradient term `k(1 − L/l)(x_a − x_b)`.
-    terms: Vec<Vec3A>,
-    /// `1/(m/dt² + Σk)` per free vertex, `0` for a pinned one (so no update
-    /// moves it).
-    inv_diag: Vec<f32>,
-    /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
-    base_diag: Vec<f32>,
+    /// What the vertex pass reads.
+    gather: Gather,
     update_norms: Vec<f64>,
     /// The iterate before last, for Chebyshev; empty without it.
     x_prev: Vec<Vec3A>,
@@ -122,12 +113,31 @@ pub struct ImplicitWorkspace {
     chunk_sums: Vec<f64>,
 }
 
+/// The per-step vertex data and per-iteration spring terms the vertex pass
+/// reads.
+#[derive(Clone, Debug, Default)]
+struct Gather {
+    /// `x̃ + dt²·g`: the gradient's mass term is `m/dt²·(x − target)`.
+    target: Vec<Vec3A>,
+    /// `m/dt²` per vertex.
+    mass_term: Vec<f32>,
+    /// Per spring: its gradient term `k(1 − L/l)(x_a − x_b)`, then a zero
+    /// (the padded gathers' target).
+    terms: Vec<Vec3A>,
+    /// `1/(m/dt² + Σk)` per free vertex, `0` for a pinned one (so no update
+    /// moves it).
+    inv_diag: Vec<f32>,
+    /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
+    base_diag: Vec<f32>,
+}
+
 impl ImplicitWorkspace {
     fn prepare(&mut self, vertices: usize, chebyshev: bool) {
-        for v in [&mut self.x_tilde, &mut self.target] {
+        let g = &mut self.gather;
+        for v in [&mut self.x_tilde, &mut g.target] {
             v.resize(vertices, Vec3A::ZERO);
         }
-        for v in [&mut self.mass_term, &mut self.inv_diag, &mut self.base_diag] {
+        for v in [&mut g.mass_term, &mut g.inv_diag, &mut g.base_diag] {
             v.resize(vertices, 0.0);
         }
         if chebyshev {
@@ -145,19 +155,25 @@ impl ImplicitWorkspace {
 
 /// What one iteration's vertex pass needs, shared by every chunk.
 struct VertexPass<'a> {
-    target: &'a [Vec3A],
-    mass_term: &'a [f32],
-    inv_diag: &'a [f32],
-    base_diag: &'a [f32],
-    /// One term per spring, then a zero (the padding's target).
-    terms: &'a [Vec3A],
+    data: &'a Gather,
     adjacency: &'a Adjacency,
     padded: Option<&'a [[[u32; 4]; 2]]>,
     pinned: &'a [bool],
     spheres: &'a [PenaltySphere],
 }
 
-impl VertexPass<'_> {
+impl<'a> VertexPass<'a> {
+    fn new(data: &'a Gather, model: &'a ClothModel, spheres: &'a [PenaltySphere]) -> Self {
+        let adjacency = model.topology().adjacency();
+        Self {
+            data,
+            adjacency,
+            padded: adjacency.padded(),
+            pinned: model.pinned(),
+            spheres,
+        }
+    }
+
     /// The objective's gradient at vertex `i` and the inverse of its
     /// diagonal, penalty contacts included (for a pinned vertex the gradient
     /// is not zeroed, but its inverse diagonal is 0).
@@ -167,7 +183,7 @@ impl VertexPass<'_> {
             // Fixed length, summed as a tree: short chains of additions.
             Some(padded) => {
                 let [p, m] = &padded[i];
-                let t = |e: u32| self.terms[e as usize];
+                let t = |e: u32| self.data.terms[e as usize];
                 ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3])))
                     - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
             }
@@ -175,19 +191,20 @@ impl VertexPass<'_> {
                 let (starts, ends) = self.adjacency.by_side(i);
                 let mut plus = Vec3A::ZERO;
                 for &e in starts {
-                    plus += self.terms[e as usize];
+                    plus += self.data.terms[e as usize];
                 }
                 let mut minus = Vec3A::ZERO;
                 for &e in ends {
-                    minus += self.terms[e as usize];
+                    minus += self.data.terms[e as usize];
                 }
                 plus - minus
             }
         };
-        let mut g = (xi - self.target[i]) * self.mass_term[i] + springs;
-        let mut inv_diag = self.inv_diag[i];
+        let d = self.data;
+        let mut g = (xi - d.target[i]) * d.mass_term[i] + springs;
+        let mut inv_diag = d.inv_diag[i];
         if !self.spheres.is_empty() && !self.pinned[i] {
-            let mut diag = self.base_diag[i];
+            let mut diag = d.base_diag[i];
             for sphere in self.spheres {
                 if let Some(contact) = sphere.contact(xi) {
                     g -= contact.force;
@@ -239,8 +256,8 @@ pub fn step(
     let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
     stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
     // One term per spring and a zero past them, which padded gathers read.
-    ws.terms.clear();
-    ws.terms.resize(springs.len() + 1, Vec3A::ZERO);
+    ws.gather.terms.clear();
+    ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
     let ClothState {
         positions: x,
         velocities: v,
@@ -253,9 +270,9 @@ pub fn step(
             x[i] += dt * v[i];
         }
         ws.x_tilde[i] = x[i];
-        ws.target[i] = x[i] + gravity_step;
+        ws.gather.target[i] = x[i] + gravity_step;
         let m = model.masses()[i];
-        ws.mass_term[i] = m * inv_dt2;
+        ws.gather.mass_term[i] = m * inv_dt2;
         let spring_diag = if lab_diagonal {
             4.0 * k[SpringKind::Stretch as usize]
         } else {
@@ -265,11 +282,11 @@ pub fn step(
                 .map(|inc| k[springs[inc.spring as usize].kind as usize])
                 .sum()
         };
-        ws.base_diag[i] = m * inv_dt2 + spring_diag;
-        ws.inv_diag[i] = if pinned[i] {
+        ws.gather.base_diag[i] = m * inv_dt2 + spring_diag;
+        ws.gather.inv_diag[i] = if pinned[i] {
             0.0
         } else {
-            1.0 / ws.base_diag[i]
+            1.0 / ws.gather.base_diag[i]
         };
     }
     if config.chebyshev.is_some() {
@@ -286,18 +303,8 @@ pub fn step(
     };
     ws.update_norms.clear();
     for k in 0..config.iterations {
-        spring_terms(model, x, &ws.coeffs, &mut ws.terms[..springs.len()]);
-        let pass = VertexPass {
-            target: &ws.target,
-            mass_term: &ws.mass_term,
-            inv_diag: &ws.inv_diag,
-            base_diag: &ws.base_diag,
-            terms: &ws.terms,
-            adjacency,
-            padded: adjacency.padded(),
-            pinned,
-            spheres,
-        };
+        spring_terms(model, x, &ws.coeffs, &mut ws.gather.terms[..springs.len()]);
+        let pass = VertexPass::new(&ws.gather, model, spheres);
         // A pinned vertex has a zero inverse diagonal, so neither update
         // moves it (Chebyshev: its iterate and the one before are equal).
         match config.chebyshev {
@@ -353,18 +360,8 @@ pub fn step(
     }
 
     // Residual at the final iterate: the gradient over free vertices.
-    spring_terms(model, x, &ws.coeffs, &mut ws.terms[..springs.len()]);
-    let pass = VertexPass {
-        target: &ws.target,
-        mass_term: &ws.mass_term,
-        inv_diag: &ws.inv_diag,
-        base_diag: &ws.base_diag,
-        terms: &ws.terms,
-        adjacency,
-        padded: adjacency.padded(),
-        pinned,
-        spheres,
-    };
+    spring_terms(model, x, &ws.coeffs, &mut ws.gather.terms[..springs.len()]);
+    let pass = VertexPass::new(&ws.gather, model, spheres);
     let mut residual = 0.0f32;
     for i in 0..n {
         if !pinned[i] {

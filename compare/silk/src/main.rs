@@ -21,12 +21,13 @@
 //!     cargo run --release --manifest-path compare/silk/Cargo.toml [-- --out FILE] [--sizes 21,51]
 
 use std::hint::black_box;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use bevy::math::Affine3A;
 use bevy_017::math::{Mat4, Vec3 as Vec3Silk};
 use bevy_017::platform::collections::HashMap;
-use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
+use bevy_cloth::model::{ClothModel, ClothState};
+use bevy_cloth::report::perf::{Timing, scale_model, time_samples};
 use bevy_cloth::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
 use bevy_cloth::solver::pbd::{self, PbdConfig, PbdWorkspace};
 use bevy_cloth::solver::{StepParams, max_stretch};
@@ -39,46 +40,6 @@ const FURTHER: usize = 30;
 const MIN_SAMPLES: usize = 15;
 const BUDGET: f64 = 1.5;
 const ITERATIONS: u32 = 32;
-
-/// Median, first and third quartile of per-step times, in seconds.
-#[derive(Clone, Copy)]
-struct Timing {
-    median: f64,
-    q1: f64,
-    q3: f64,
-}
-
-fn timing(mut samples: Vec<f64>) -> Timing {
-    samples.sort_by(f64::total_cmp);
-    let at = |q: f64| samples[((samples.len() - 1) as f64 * q).round() as usize];
-    Timing {
-        median: at(0.5),
-        q1: at(0.25),
-        q3: at(0.75),
-    }
-}
-
-/// Times `step` from the same state again and again: `restore` (untimed)
-/// puts the state back before each sample.
-fn run(mut restore: impl FnMut(), mut step: impl FnMut()) -> Timing {
-    let start = Instant::now();
-    let mut samples = Vec::new();
-    while samples.len() < MIN_SAMPLES || start.elapsed().as_secs_f64() < BUDGET {
-        restore();
-        let t = Instant::now();
-        step();
-        samples.push(t.elapsed().as_secs_f64());
-    }
-    timing(samples)
-}
-
-fn model(n: usize) -> ClothModel {
-    ClothBuilder::lab_grid(n)
-        .with_total_mass(441.0)
-        .with_pins([0, n as u32 - 1])
-        .build()
-        .expect("the lab grid is a valid cloth")
-}
 
 struct Ours {
     timing: Timing,
@@ -93,17 +54,13 @@ fn ours(model: &ClothModel, mut step: impl FnMut(&mut ClothState)) -> Ours {
     }
     let warm = state.clone();
     let mut timed = warm.clone();
-    let timing = {
-        let timed = std::cell::RefCell::new(&mut timed);
-        let step = std::cell::RefCell::new(&mut step);
-        run(
-            || timed.borrow_mut().copy_from(&warm),
-            || {
-                (step.borrow_mut())(&mut timed.borrow_mut());
-                black_box(&timed);
-            },
-        )
-    };
+    let timing = time_samples(Duration::from_secs_f64(BUDGET), MIN_SAMPLES, || {
+        timed.copy_from(&warm);
+        let t = Instant::now();
+        step(&mut timed);
+        black_box(&timed);
+        t.elapsed().as_secs_f64()
+    });
     for _ in 0..FURTHER {
         step(&mut state);
     }
@@ -148,22 +105,18 @@ fn silk(model: &ClothModel, params: &StepParams) -> (Timing, f32) {
     }
     let warm = cloth.clone();
     let mut timed = cloth.clone();
-    let timing = {
-        let timed = std::cell::RefCell::new(&mut timed);
-        run(
-            || {
-                let mut t = timed.borrow_mut();
-                t.current_point_positions
-                    .copy_from_slice(&warm.current_point_positions);
-                t.previous_point_positions
-                    .copy_from_slice(&warm.previous_point_positions);
-            },
-            || {
-                step(&mut timed.borrow_mut());
-                black_box(&timed);
-            },
-        )
-    };
+    let timing = time_samples(Duration::from_secs_f64(BUDGET), MIN_SAMPLES, || {
+        timed
+            .current_point_positions
+            .copy_from_slice(&warm.current_point_positions);
+        timed
+            .previous_point_positions
+            .copy_from_slice(&warm.previous_point_positions);
+        let t = Instant::now();
+        step(&mut timed);
+        black_box(&timed);
+        t.elapsed().as_secs_f64()
+    });
     for _ in 0..FURTHER {
         step(&mut cloth);
     }
@@ -210,7 +163,7 @@ fn main() {
          |---|---|---|---|---|---|---|---|---|---|\n",
     );
     for n in sizes {
-        let model = model(n);
+        let model = scale_model(n);
         let (silk_t, silk_stretch) = silk(&model, &params);
         let mut pbd_ws = PbdWorkspace::default();
         let config = PbdConfig {
