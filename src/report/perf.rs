@@ -641,7 +641,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
          compute pool for the parallel columns: {threads} threads. Build: release, baseline \
          x86-64 target (SSE2, 4-lane packed `f32`).",
         std::env::consts::ARCH,
-        cpu_name(),
+        super::machine(),
         std::thread::available_parallelism().map_or(0, |n| n.get()),
     )
     .ok();
@@ -956,18 +956,6 @@ fn last_level_cache() -> usize {
             Some(kib << 10)
         })
         .unwrap_or(32 << 20)
-}
-
-fn cpu_name() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into())
 }
 
 fn chart(path: &Path, cases: &[Case]) -> Result<(), String> {

@@ -47,23 +47,35 @@ struct Ours {
     finite: bool,
 }
 
-fn ours(model: &ClothModel, mut step: impl FnMut(&mut ClothState)) -> Ours {
-    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+/// Steps `state` `WARM` times from where it is; times the step from that
+/// warm state again and again (`restore` puts the warm state back, untimed,
+/// before each sample); then steps `state` `FURTHER` times on from it.
+fn warm_timed<S: Clone>(
+    state: &mut S,
+    mut step: impl FnMut(&mut S),
+    restore: impl Fn(&mut S, &S),
+) -> Timing {
     for _ in 0..WARM {
-        step(&mut state);
+        step(state);
     }
     let warm = state.clone();
     let mut timed = warm.clone();
     let timing = time_samples(Duration::from_secs_f64(BUDGET), MIN_SAMPLES, || {
-        timed.copy_from(&warm);
+        restore(&mut timed, &warm);
         let t = Instant::now();
         step(&mut timed);
         black_box(&timed);
         t.elapsed().as_secs_f64()
     });
     for _ in 0..FURTHER {
-        step(&mut state);
+        step(state);
     }
+    timing
+}
+
+fn ours(model: &ClothModel, step: impl FnMut(&mut ClothState)) -> Ours {
+    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+    let timing = warm_timed(&mut state, step, |timed, warm| timed.copy_from(warm));
     Ours {
         timing,
         stretch: max_stretch(model, &state.positions),
@@ -100,26 +112,14 @@ fn silk(model: &ClothModel, params: &StepParams) -> (Timing, f32) {
         cloth.update_points(params.damping, gravity);
         cloth.update_sticks(ITERATIONS as u8);
     };
-    for _ in 0..WARM {
-        step(&mut cloth);
-    }
-    let warm = cloth.clone();
-    let mut timed = cloth.clone();
-    let timing = time_samples(Duration::from_secs_f64(BUDGET), MIN_SAMPLES, || {
+    let timing = warm_timed(&mut cloth, step, |timed, warm| {
         timed
             .current_point_positions
             .copy_from_slice(&warm.current_point_positions);
         timed
             .previous_point_positions
             .copy_from_slice(&warm.previous_point_positions);
-        let t = Instant::now();
-        step(&mut timed);
-        black_box(&timed);
-        t.elapsed().as_secs_f64()
     });
-    for _ in 0..FURTHER {
-        step(&mut cloth);
-    }
     let x = &cloth.current_point_positions;
     let stretch = cloth
         .stick_lengths
