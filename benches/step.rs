@@ -13,9 +13,9 @@ use std::hint::black_box;
 use bevy::math::Affine3A;
 use bevy_cloth::collision::{Sphere, project_spheres};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
-use bevy_cloth::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use bevy_cloth::solver::linear::{self, LinearConfig, LinearSolver, LinearWorkspace};
-use bevy_cloth::solver::pbd::{self, PbdConfig, PbdWorkspace};
+use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use bevy_cloth::solver::linear::{self, LinearImplicitSolver, LinearSolver, LinearWorkspace};
+use bevy_cloth::solver::pbd::{self, PbdSolver, PbdWorkspace};
 use bevy_cloth::solver::symplectic::{self, SymplecticWorkspace};
 use bevy_cloth::solver::{SpringStiffness, StepParams};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
@@ -37,7 +37,7 @@ fn warm(model: &ClothModel, params: &StepParams) -> ClothState {
             model,
             &mut state,
             params,
-            &ImplicitConfig::chebyshev(32, 0.995),
+            &ImplicitSolver::chebyshev(32, 0.995),
             &[],
             &mut ws,
         )
@@ -52,8 +52,8 @@ fn steps(c: &mut Criterion) {
         let (model, params) = scene(n);
         let start = warm(&model, &params);
         for (name, config) in [
-            ("jacobi32", ImplicitConfig::jacobi(32)),
-            ("chebyshev32", ImplicitConfig::chebyshev(32, 0.995)),
+            ("jacobi32", ImplicitSolver::jacobi(32)),
+            ("chebyshev32", ImplicitSolver::chebyshev(32, 0.995)),
         ] {
             let mut ws = ImplicitWorkspace::default();
             let mut state = start.clone();
@@ -74,7 +74,7 @@ fn steps(c: &mut Criterion) {
                     &model,
                     &mut state,
                     &params,
-                    &PbdConfig { iterations: 32 },
+                    &PbdSolver { iterations: 32 },
                     &[],
                     &mut ws,
                 )
@@ -120,14 +120,17 @@ fn linear(c: &mut Criterion) {
         let model = ClothBuilder::assignment(n, n).build().expect("valid cloth");
         let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let mut ws = LinearWorkspace::default();
-        let direct = LinearConfig {
+        let direct = LinearImplicitSolver {
             solver: LinearSolver::Direct,
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         };
         for _ in 0..20 {
             linear::step(&model, &mut start, &params, &direct, &[], &mut ws).expect("valid step");
         }
-        for (name, config) in [("cg25", LinearConfig::default()), ("direct", direct)] {
+        for (name, config) in [
+            ("cg25", LinearImplicitSolver::default()),
+            ("direct", direct),
+        ] {
             let mut ws = LinearWorkspace::default();
             let mut state = start.clone();
             group.bench_function(BenchmarkId::new(name, n), |b| {

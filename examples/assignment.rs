@@ -21,15 +21,15 @@ use std::process::ExitCode;
 use bevy::picking::Pickable;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{checker_image, cloth_mesh};
-use common::ScreenshotMode;
+use bevy_cloth::render::cloth_mesh;
+use common::{ScreenshotMode, checker_image};
 
 const USAGE: &str = "usage: assignment [--method M] [--rows R] [--cols C] [--h SECONDS] \
 [--stiffness E] [--mass TOTAL] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]
 struct Options {
-    method: MethodChoice,
+    method: AnyMethod,
     rows: usize,
     cols: usize,
     h: f64,
@@ -40,7 +40,9 @@ struct Options {
 fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), String> {
     let screenshot = common::screenshot_option(&mut args)?;
     let mut o = Options {
-        method: MethodChoice::LinearCg,
+        method: bevy_cloth::methods::preset("linear-cg")
+            .expect("a preset")
+            .method,
         rows: 30,
         cols: 30,
         h: 5e-3,

@@ -5,12 +5,13 @@
 //! cargo run --release --example headless -- [--scene lab|assignment] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--rho 0.995] [--sphere] \
-//!     [--penalty C] [--clamp-compression] [--dump positions.csv] [--compute-threads N]
+//!     [--penalty C] [--exact-k] [--dump positions.csv] [--compute-threads N]
 //! ```
 //!
-//! Methods: `implicit` (Jacobi), `chebyshev`, `pbd`, `symplectic`,
-//! `linear-cg`, `linear-direct`, `exact` (Newton to a gradient tolerance);
-//! every method runs on every scene.
+//! Methods: the preset names of `bevy_cloth::methods::PRESETS` (`jacobi`,
+//! also `implicit`, `chebyshev`, `chebyshev-auto`, `pbd`, `symplectic`,
+//! `linear-cg`, `linear-direct`, `exact`), at their interactive settings;
+//! `--iterations` and `--rho` change them. Every method runs on every scene.
 //!
 //! - `lab` (default): the Unity lab's `n×n` cloth (10×10 units, total mass
 //!   441 — 1 per vertex at the lab's 21² —, pinned at 0 and n−1),
@@ -32,9 +33,9 @@
 //! parallel across the compute pool; the summary then reports the median
 //! wall time of a whole update (every cloth's step) too.
 //!
-//! `--clamp-compression` makes the linearly implicit methods drop the
-//! compressive term of each spring block (keeps `A` positive definite; see
-//! `SpringJacobian`). `--dump` writes the final positions as CSV `i,x,y,z`. Bad arguments print
+//! The linearly implicit presets drop the compressive term of each spring
+//! block (keeps `A` positive definite; see `SpringJacobian`); `--exact-k`
+//! gives them the assignment's exact blocks instead. `--dump` writes the final positions as CSV `i,x,y,z`. Bad arguments print
 //! the usage and exit with status 2.
 
 use std::process::ExitCode;
@@ -47,7 +48,7 @@ use bevy_cloth::prelude::*;
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
 [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct|exact] [--n N] [--rows R] \
 [--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
-[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--clamp-compression] [--dump FILE.csv] [--compute-threads N]";
+[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--dump FILE.csv] [--compute-threads N]";
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scene {
@@ -58,7 +59,7 @@ enum Scene {
 #[derive(Debug, Clone)]
 struct Options {
     scene: Scene,
-    method: MethodChoice,
+    method: AnyMethod,
     n: usize,
     cloths: usize,
     rows: usize,
@@ -69,10 +70,10 @@ struct Options {
     dt: Option<f64>,
     damping: Option<f32>,
     mass: Option<f32>,
-    rho: f32,
+    rho: Option<f32>,
     sphere: bool,
     penalty: f32,
-    clamp: bool,
+    exact_k: bool,
     dump: Option<String>,
     compute_threads: Option<usize>,
 }
@@ -81,7 +82,7 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             scene: Scene::Lab,
-            method: MethodChoice::Jacobi,
+            method: PRESETS[0].method,
             n: 21,
             cloths: 1,
             rows: 2,
@@ -92,10 +93,10 @@ impl Default for Options {
             dt: None,
             damping: None,
             mass: None,
-            rho: 0.995,
+            rho: None,
             sphere: false,
             penalty: 10.0,
-            clamp: false,
+            exact_k: false,
             dump: None,
             compute_threads: None,
         }
@@ -133,10 +134,10 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
             "--dt" | "--h" => o.dt = Some(parse(&flag, args.next())?),
             "--damping" => o.damping = Some(parse(&flag, args.next())?),
             "--mass" => o.mass = Some(parse(&flag, args.next())?),
-            "--rho" => o.rho = parse(&flag, args.next())?,
+            "--rho" => o.rho = Some(parse(&flag, args.next())?),
             "--sphere" => o.sphere = true,
             "--penalty" => o.penalty = parse(&flag, args.next())?,
-            "--clamp-compression" => o.clamp = true,
+            "--exact-k" => o.exact_k = true,
             "--dump" => o.dump = Some(parse(&flag, args.next())?),
             "--compute-threads" => o.compute_threads = Some(parse(&flag, args.next())?),
             "-h" | "--help" => return Err(String::new()),
@@ -149,9 +150,21 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
     if o.cloths == 0 {
         return Err("--cloths must be at least 1".into());
     }
-    if o.method == MethodChoice::Chebyshev && !(o.rho > 0.0 && o.rho < 1.0) {
-        return Err(format!("--rho must lie in (0, 1), got {}", o.rho));
+    if let Some(k) = o.iterations {
+        o.method = o.method.with_iterations(k);
     }
+    match (&mut o.method, o.rho) {
+        (AnyMethod::Implicit(i), Some(rho)) => i.chebyshev = Some(Rho::Fixed(rho)),
+        (_, Some(_)) => return Err("--rho goes with the implicit methods".into()),
+        _ => {}
+    }
+    if o.exact_k {
+        match &mut o.method {
+            AnyMethod::Linear(l) => l.springs = SpringJacobian::Exact,
+            _ => return Err("--exact-k goes with the linearly implicit methods".into()),
+        }
+    }
+    o.method.validate().map_err(|e| e.to_string())?;
     Ok(o)
 }
 
@@ -245,31 +258,7 @@ fn run(o: &Options) -> Result<(), String> {
             params,
             Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
         ));
-        let iterations = o.iterations;
-        let springs = if o.clamp {
-            SpringJacobian::ClampCompression
-        } else {
-            SpringJacobian::Exact
-        };
-        match o.method {
-            MethodChoice::Jacobi => cloth.insert(ImplicitSolver::jacobi(iterations.unwrap_or(32))),
-            MethodChoice::Chebyshev => {
-                cloth.insert(ImplicitSolver::chebyshev(iterations.unwrap_or(32), o.rho))
-            }
-            MethodChoice::Pbd => cloth.insert(PbdSolver::new(iterations.unwrap_or(32))),
-            MethodChoice::Symplectic => cloth.insert(SymplecticSolver),
-            MethodChoice::LinearCg => cloth.insert(
-                LinearImplicitSolver::cg(CgConfig {
-                    max_iterations: iterations.unwrap_or(25),
-                    ..CgConfig::default()
-                })
-                .with_springs(springs),
-            ),
-            MethodChoice::LinearDirect => {
-                cloth.insert(LinearImplicitSolver::direct().with_springs(springs))
-            }
-            MethodChoice::Exact => cloth.insert(ExactSolver::default()),
-        };
+        o.method.insert_now(&mut cloth);
         ids.push(cloth.id());
     }
     let cloth = ids[0];

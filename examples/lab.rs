@@ -17,24 +17,27 @@ use std::process::ExitCode;
 
 use bevy::picking::Pickable;
 use bevy::prelude::*;
+use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{Draggable, checker_image, cloth_mesh};
+use bevy_cloth::render::cloth_mesh;
 use bevy_cloth::ui::ClothResolution;
-use common::ScreenshotMode;
+use common::{ScreenshotMode, checker_image};
 
-const USAGE: &str = "usage: lab [--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct] \
+const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|exact] \
 [--n N] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]
 struct LabOptions {
-    method: MethodChoice,
+    method: AnyMethod,
     n: u32,
 }
 
 fn parse(mut args: Vec<String>) -> Result<(LabOptions, Option<ScreenshotMode>), String> {
     let screenshot = common::screenshot_option(&mut args)?;
     let mut options = LabOptions {
-        method: MethodChoice::Chebyshev,
+        method: bevy_cloth::methods::preset("chebyshev")
+            .expect("a preset")
+            .method,
         n: 21,
     };
     let mut it = args.into_iter();

@@ -36,7 +36,9 @@ fn count(mut messages: MessageReader<ClothDiverged>, mut seen: ResMut<Guarded>) 
 
 fn main() -> ExitCode {
     let mut steps: u64 = 100_000;
-    let mut method = MethodChoice::Chebyshev;
+    let mut method = bevy_cloth::methods::preset("chebyshev")
+        .expect("a preset")
+        .method;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let value = args.next();

@@ -212,14 +212,14 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+#[cfg(feature = "picking")]
+pub mod drag;
 pub mod ecs;
+pub mod methods;
 pub mod model;
 #[cfg(feature = "render")]
 pub mod render;
-#[cfg(feature = "report")]
-pub mod report;
 pub mod solver;
-pub mod stability;
 #[cfg(feature = "egui")]
 pub mod ui;
 
@@ -229,30 +229,44 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Chebyshev, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothGuard, ClothMethod,
-    ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
-    ClothWorkspace, DivergenceReason, ExactPlugin, ExactSolver, GuardAction, ImplicitPlugin,
-    ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver, MethodChoice, MethodPlugin,
-    PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse, SymplecticPlugin,
-    SymplecticSolver,
+    Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothGuard, ClothMethod, ClothMethods,
+    ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
+    DivergenceReason, GuardAction, MethodPlugin, SphereCollider, SphereCollisionPlugin,
+    SphereResponse,
 };
+pub use methods::{
+    AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
+    SymplecticPlugin,
+};
+pub use solver::exact::ExactSolver;
+pub use solver::implicit::{ImplicitSolver, Rho};
+pub use solver::linear::LinearImplicitSolver;
+pub use solver::pbd::PbdSolver;
+pub use solver::symplectic::SymplecticSolver;
 
 /// Everything a game needs, in one import.
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        Chebyshev, Cloth, ClothCorePlugin, ClothDiverged, ClothGuard, ClothParams, ClothSimulation,
-        ClothStats, ClothStatus, ClothSystems, DivergenceReason, ExactPlugin, ExactSolver,
-        GuardAction, ImplicitPlugin, ImplicitSolver, LinearImplicitPlugin, LinearImplicitSolver,
-        MethodChoice, PbdPlugin, PbdSolver, SphereCollider, SphereCollisionPlugin, SphereResponse,
-        SymplecticPlugin, SymplecticSolver,
+        Cloth, ClothCorePlugin, ClothDiverged, ClothGuard, ClothParams, ClothSimulation,
+        ClothStats, ClothStatus, ClothSystems, DivergenceReason, GuardAction, SphereCollider,
+        SphereCollisionPlugin, SphereResponse,
     };
-    pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState, ParamError};
+    pub use crate::methods::{
+        AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
+        SymplecticPlugin,
+    };
+    pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
+    pub use crate::solver::exact::ExactSolver;
     pub use crate::solver::guard::{GuardBounds, GuardPolicy};
+    pub use crate::solver::implicit::{ImplicitSolver, Rho};
     pub use crate::solver::linear::{
-        CgConfig, LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian,
+        CgConfig, LinearImplicitSolver, LinearSolver, PenaltyJacobian, Preconditioner,
+        SpringJacobian,
     };
-    pub use crate::solver::{SpringStiffness, StepParams};
+    pub use crate::solver::pbd::PbdSolver;
+    pub use crate::solver::symplectic::SymplecticSolver;
+    pub use crate::solver::{Method, ParamError, SpringStiffness, StepParams};
 }
 
 /// All cloth plugins.
@@ -291,13 +305,8 @@ impl Default for ClothPlugins {
 
 impl PluginGroup for ClothPlugins {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>()
-            .add(ClothCorePlugin::new(self.schedule))
-            .add(ImplicitPlugin::new(self.schedule))
-            .add(PbdPlugin::new(self.schedule))
-            .add(SymplecticPlugin::new(self.schedule))
-            .add(LinearImplicitPlugin::new(self.schedule))
-            .add(ExactPlugin::new(self.schedule))
+        let group = PluginGroupBuilder::start::<Self>().add(ClothCorePlugin::new(self.schedule));
+        methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
     }
 }

@@ -1,25 +1,20 @@
-//! Rendering (cargo feature `render`): cloth meshes that follow the
-//! simulation, and mouse dragging of entities through Bevy's picking.
+//! Mesh write-back (cargo feature `render`, on by default): cloth meshes
+//! that follow the simulation.
 //!
-//! - [`ClothRenderPlugin`] writes each cloth's positions and normals into the
-//!   [`Mesh`] of its [`Mesh3d`] once per rendered frame (in `PostUpdate`,
-//!   after transform propagation), not once per fixed step. Positions are
-//!   converted from world space to the entity's local space, so the mesh
-//!   renders where the simulation is. Build the mesh with [`cloth_mesh`].
-//! - [`DragPlugin`] lets the mouse drag any entity marked [`Draggable`] in the
-//!   plane through it that faces the camera (press on it and move). While an
-//!   entity is held, [`Dragging`] names it, so a camera controller can stop
-//!   orbiting.
+//! [`ClothRenderPlugin`] writes each cloth's positions and normals into the
+//! [`Mesh`] of its [`Mesh3d`] once per rendered frame (in `PostUpdate`,
+//! after transform propagation), not once per fixed step. Positions are
+//! converted from world space to the entity's local space, so the mesh
+//! renders where the simulation is. Build the mesh with [`cloth_mesh`].
+//!
+//! This needs only Bevy's mesh and camera crates, not its renderer: a game
+//! brings its own rendering features.
 
 use bevy::asset::RenderAssetUsages;
-use bevy::camera::NormalizedRenderTarget;
 use bevy::camera::visibility::NoFrustumCulling;
 use bevy::math::Affine3A;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
-use bevy::picking::events::{Drag, DragStart, Pointer, Press, Release};
-use bevy::picking::pointer::Location;
 use bevy::prelude::*;
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 
 use crate::ecs::Cloth;
 use crate::model::ClothModel;
@@ -81,31 +76,6 @@ pub fn cloth_mesh(model: &ClothModel) -> Mesh {
     .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
     .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
     .with_inserted_indices(Indices::U32(indices))
-}
-
-/// A checkerboard texture (`cells×cells`, two colours) that makes folds
-/// readable on a cloth.
-pub fn checker_image(cells: u32, a: Color, b: Color) -> Image {
-    let size = cells * 16;
-    let (a, b) = (a.to_srgba().to_u8_array(), b.to_srgba().to_u8_array());
-    let mut data = Vec::with_capacity((size * size * 4) as usize);
-    for y in 0..size {
-        for x in 0..size {
-            let odd = ((x / 16) + (y / 16)) % 2 == 1;
-            data.extend_from_slice(if odd { &a } else { &b });
-        }
-    }
-    Image::new(
-        Extent3d {
-            width: size,
-            height: size,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        data,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::default(),
-    )
 }
 
 /// Area-weighted vertex normals of `positions` mapped by `to_local`.
@@ -170,148 +140,5 @@ fn write_cloth_meshes(
         {
             fill_normals(cloth.model().topology().triangles(), x, &to_local, normals);
         }
-    }
-}
-
-/// Marks an entity the mouse can drag (it needs a mesh to be picked).
-#[derive(Component, Reflect, Debug, Default, Clone, Copy, PartialEq)]
-#[reflect(Component, Default, Debug)]
-pub struct Draggable;
-
-/// The entity held by the mouse, if any (set on press, cleared on release).
-#[derive(Resource, Debug, Default, Clone, Copy, PartialEq)]
-pub struct Dragging {
-    /// The held entity.
-    pub entity: Option<Entity>,
-    /// Plane of the drag: a point and the normal facing the camera.
-    plane: Option<(Vec3, Vec3)>,
-    /// Offset from the grab point to the entity's origin.
-    offset: Vec3,
-    /// The camera the drag started from.
-    camera_hint: Option<Entity>,
-}
-
-/// Drags [`Draggable`] entities with the mouse in the camera-facing plane.
-/// Needs Bevy's picking with a backend (`MeshPickingPlugin`).
-#[derive(Debug, Default, Clone, Copy)]
-pub struct DragPlugin;
-
-impl Plugin for DragPlugin {
-    fn build(&self, app: &mut App) {
-        app.register_type::<Draggable>()
-            .init_resource::<Dragging>()
-            .add_observer(on_press)
-            .add_observer(on_drag_start)
-            .add_observer(on_drag)
-            .add_observer(on_release);
-    }
-}
-
-/// The world-space ray through `cursor` (logical pixels from the top-left of
-/// a `viewport` of that logical size) of a camera at `camera` with a
-/// perspective `projection`.
-///
-/// This is `Camera::viewport_to_world` for a full-window viewport, computed
-/// from the projection and window size alone, so it also works where the
-/// render world never computed the camera's viewport (headless tests).
-pub fn pointer_ray(
-    camera: &GlobalTransform,
-    projection: &Projection,
-    viewport: Vec2,
-    cursor: Vec2,
-) -> Option<Ray3d> {
-    let Projection::Perspective(perspective) = projection else {
-        return None;
-    };
-    if viewport.x <= 0.0 || viewport.y <= 0.0 {
-        return None;
-    }
-    let ndc = Vec2::new(
-        2.0 * cursor.x / viewport.x - 1.0,
-        1.0 - 2.0 * cursor.y / viewport.y,
-    );
-    let half = (perspective.fov * 0.5).tan();
-    let aspect = viewport.x / viewport.y;
-    let local = Vec3::new(ndc.x * half * aspect, ndc.y * half, -1.0);
-    let direction = Dir3::new(camera.affine().transform_vector3(local)).ok()?;
-    Some(Ray3d::new(camera.translation(), direction))
-}
-
-fn on_press(
-    press: On<Pointer<Press>>,
-    draggable: Query<(), With<Draggable>>,
-    mut dragging: ResMut<Dragging>,
-) {
-    if draggable.contains(press.entity) {
-        dragging.entity = Some(press.entity);
-        dragging.plane = None;
-    }
-}
-
-fn on_release(_release: On<Pointer<Release>>, mut dragging: ResMut<Dragging>) {
-    if dragging.entity.is_some() {
-        *dragging = Dragging::default();
-    }
-}
-
-fn on_drag_start(
-    start: On<Pointer<DragStart>>,
-    draggable: Query<&GlobalTransform, With<Draggable>>,
-    cameras: Query<&GlobalTransform>,
-    mut dragging: ResMut<Dragging>,
-) {
-    let Ok(target) = draggable.get(start.entity) else {
-        return;
-    };
-    let Ok(camera) = cameras.get(start.hit.camera) else {
-        return;
-    };
-    let center = target.translation();
-    let grab = start.hit.position.unwrap_or(center);
-    dragging.entity = Some(start.entity);
-    // The plane through the grab point, facing the camera.
-    dragging.plane = Some((grab, camera.forward().as_vec3()));
-    dragging.offset = center - grab;
-    dragging.camera_hint = Some(start.hit.camera);
-}
-
-fn on_drag(
-    drag: On<Pointer<Drag>>,
-    dragging: Res<Dragging>,
-    cameras: Query<(&GlobalTransform, &Projection)>,
-    windows: Query<&Window>,
-    mut transforms: Query<&mut Transform, With<Draggable>>,
-) {
-    if dragging.entity != Some(drag.entity) {
-        return;
-    }
-    let (Some((point, normal)), Some(camera)) = (dragging.plane, dragging.camera_hint) else {
-        return;
-    };
-    let Ok((camera, projection)) = cameras.get(camera) else {
-        return;
-    };
-    let Some(viewport) = viewport_size(&drag.pointer_location, &windows) else {
-        return;
-    };
-    let Some(ray) = pointer_ray(camera, projection, viewport, drag.pointer_location.position)
-    else {
-        return;
-    };
-    let Some(distance) = ray.intersect_plane(point, InfinitePlane3d::new(normal)) else {
-        return;
-    };
-    if let Ok(mut transform) = transforms.get_mut(drag.entity) {
-        transform.translation = ray.get_point(distance) + dragging.offset;
-    }
-}
-
-fn viewport_size(location: &Location, windows: &Query<&Window>) -> Option<Vec2> {
-    match &location.target {
-        NormalizedRenderTarget::Window(window) => {
-            let window = windows.get(window.entity()).ok()?;
-            Some(Vec2::new(window.width(), window.height()))
-        }
-        _ => None,
     }
 }

@@ -12,15 +12,16 @@ use std::collections::VecDeque;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
+use bevy::ecs::world::EntityRefExcept;
+
 use crate::ecs::{
-    Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, ExactSolver,
-    ImplicitSolver, LinearImplicitSolver, MethodChoice, PbdSolver, SphereCollider, SphereResponse,
-    SymplecticSolver,
+    Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, SphereCollider,
+    SphereResponse,
 };
+use crate::methods::{AnyMethod, PRESETS};
 use crate::model::{ClothBuildError, ClothModel};
-use crate::solver::linear::{
-    CgConfig, LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian,
-};
+use crate::solver::implicit::Rho;
+use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
 
 /// The inspector panel and its keyboard shortcuts.
 #[derive(Debug, Clone, Copy)]
@@ -110,27 +111,28 @@ fn keyboard_shortcuts(
     }
 }
 
-type MethodQuery<'a> = (
-    Option<Mut<'a, ImplicitSolver>>,
-    Option<Mut<'a, PbdSolver>>,
-    Option<&'a SymplecticSolver>,
-    Option<Mut<'a, LinearImplicitSolver>>,
-    Option<Mut<'a, ExactSolver>>,
-);
-
 type ClothItem = (
     Entity,
     &'static mut Cloth,
     &'static mut ClothParams,
     &'static mut ClothStats,
-    Option<&'static mut ImplicitSolver>,
-    Option<&'static mut PbdSolver>,
-    Option<&'static SymplecticSolver>,
-    Option<&'static mut LinearImplicitSolver>,
-    Option<&'static mut ExactSolver>,
     Option<&'static mut ClothResolution>,
     Option<&'static Mesh3d>,
 );
+
+/// Read access to every other component of a cloth: its method.
+type MethodRef<'w, 's> = EntityRefExcept<
+    'w,
+    's,
+    (
+        Cloth,
+        ClothParams,
+        ClothStats,
+        ClothResolution,
+        Mesh3d,
+        SphereCollider,
+    ),
+>;
 
 #[allow(clippy::too_many_arguments)]
 fn inspector_panel(
@@ -140,12 +142,12 @@ fn inspector_panel(
     mut fixed: ResMut<Time<Fixed>>,
     methods: Res<ClothMethods>,
     mut cloths: Query<ClothItem>,
+    method_of: Query<MethodRef>,
     mut colliders: Query<(Entity, &mut SphereCollider)>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut commands: Commands,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
-    let available: Vec<&str> = methods.names().collect();
     egui::Window::new("bevy_cloth")
         .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
         .default_width(300.0)
@@ -209,30 +211,14 @@ fn inspector_panel(
                         ui.label("No cloth.");
                         return;
                     };
-                    let Ok((
-                        entity,
-                        mut cloth,
-                        mut params,
-                        mut stats,
-                        implicit,
-                        pbd,
-                        symplectic,
-                        linear,
-                        exact,
-                        resolution,
-                        mesh,
-                    )) = cloths.get_mut(selected)
+                    let Ok((entity, mut cloth, mut params, mut stats, resolution, mesh)) =
+                        cloths.get_mut(selected)
                     else {
                         return;
                     };
                     ui.separator();
-                    method_ui(
-                        ui,
-                        &available,
-                        &mut commands,
-                        entity,
-                        (implicit, pbd, symplectic, linear, exact),
-                    );
+                    let current = method_of.get(entity).ok().and_then(|e| AnyMethod::of(&e));
+                    method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();
                     params_ui(ui, &mut params);
                     if let Some(mut resolution) = resolution {
@@ -268,140 +254,139 @@ fn inspector_panel(
 
 fn method_ui(
     ui: &mut egui::Ui,
-    available: &[&str],
+    methods: &ClothMethods,
     commands: &mut Commands,
     entity: Entity,
-    (implicit, pbd, symplectic, linear, exact): MethodQuery<'_>,
+    current: Option<AnyMethod>,
 ) {
-    let current = match (&implicit, &pbd, &symplectic, &linear, &exact) {
-        (Some(i), ..) if i.chebyshev.is_some() => Some(MethodChoice::Chebyshev),
-        (Some(_), ..) => Some(MethodChoice::Jacobi),
-        (_, Some(_), ..) => Some(MethodChoice::Pbd),
-        (_, _, Some(_), ..) => Some(MethodChoice::Symplectic),
-        (_, _, _, Some(l), _) if l.solver == LinearSolver::Direct => {
-            Some(MethodChoice::LinearDirect)
-        }
-        (_, _, _, Some(_), _) => Some(MethodChoice::LinearCg),
-        (.., Some(_)) => Some(MethodChoice::Exact),
-        _ => None,
+    let name = current.map(|m| m.name());
+    let label = |name: &'static str| {
+        PRESETS
+            .iter()
+            .find(|p| p.name() == name)
+            .map_or(name, |p| p.label)
     };
-    let mut chosen = current;
+    let mut chosen = name;
     egui::ComboBox::from_label("method")
-        .selected_text(current.map_or("none", MethodChoice::label))
+        .selected_text(name.map_or("none", label))
         .show_ui(ui, |ui| {
-            for m in MethodChoice::ALL {
-                ui.add_enabled_ui(available.contains(&m.kind()), |ui| {
-                    ui.selectable_value(&mut chosen, Some(m), m.label());
+            for p in PRESETS {
+                ui.add_enabled_ui(methods.contains(p.method.type_id()), |ui| {
+                    ui.selectable_value(&mut chosen, Some(p.name()), p.label);
                 });
             }
         });
-    if chosen != current
-        && let Some(m) = chosen
+    if chosen != name
+        && let Some(preset) = PRESETS.iter().find(|p| Some(p.name()) == chosen)
     {
-        let mut e = commands.entity(entity);
-        match m {
-            MethodChoice::Jacobi => e.insert(ImplicitSolver::jacobi(
-                implicit.map_or(32, |i| i.iterations),
-            )),
-            MethodChoice::Chebyshev => e.insert(ImplicitSolver::chebyshev(
-                implicit.map_or(32, |i| i.iterations),
-                0.995,
-            )),
-            MethodChoice::Pbd => e.insert(PbdSolver::default()),
-            MethodChoice::Symplectic => e.insert(SymplecticSolver),
-            MethodChoice::LinearCg => e.insert(
-                LinearImplicitSolver::cg(CgConfig::default())
-                    .with_springs(SpringJacobian::ClampCompression),
-            ),
-            MethodChoice::LinearDirect => e.insert(
-                LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
-            ),
-            MethodChoice::Exact => e.insert(ExactSolver::default()),
+        // Between settings of one method type (Jacobi and Chebyshev), keep
+        // the iteration count.
+        let method = match (current.and_then(|c| c.iterations()), current) {
+            (Some(k), Some(c)) if c.type_id() == preset.method.type_id() => {
+                preset.method.with_iterations(k)
+            }
+            _ => preset.method,
         };
+        method.insert(&mut commands.entity(entity));
         return;
     }
-    if let Some(mut i) = implicit {
-        ui.add(
-            egui::Slider::new(&mut i.iterations, 1..=512)
-                .text("iterations")
-                .logarithmic(true),
-        );
-        let mut on = i.chebyshev.is_some();
-        if ui.checkbox(&mut on, "Chebyshev acceleration").changed() {
-            i.chebyshev = on.then(Default::default);
-        }
-        if let Some(c) = &mut i.chebyshev {
-            ui.checkbox(&mut c.auto_rho, "estimate rho each step");
-            ui.add_enabled(
-                !c.auto_rho,
-                egui::Slider::new(&mut c.rho, 0.5..=0.9999).text("rho"),
-            );
-        }
+    let Some(mut method) = current else {
+        return;
+    };
+    settings_ui(ui, &mut method);
+    if Some(method) != current {
+        method.insert(&mut commands.entity(entity));
     }
-    if let Some(mut p) = pbd {
-        ui.add(
-            egui::Slider::new(&mut p.iterations, 1..=512)
-                .text("iterations")
-                .logarithmic(true),
-        );
-    }
-    if let Some(mut x) = exact {
-        let mut exponent = x.tolerance.log10();
-        if ui
-            .add(egui::Slider::new(&mut exponent, -12.0..=-2.0).text("gradient tolerance (log10)"))
-            .changed()
-        {
-            x.tolerance = 10f64.powf(exponent);
+}
+
+/// The controls of a method's settings.
+fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
+    match method {
+        AnyMethod::Implicit(i) => {
+            iterations_ui(ui, &mut i.iterations, "iterations");
+            let mut on = i.chebyshev.is_some();
+            if ui.checkbox(&mut on, "Chebyshev acceleration").changed() {
+                i.chebyshev = on.then(Rho::default);
+            }
+            if let Some(rho) = &mut i.chebyshev {
+                let mut auto = *rho == Rho::Auto;
+                if ui.checkbox(&mut auto, "estimate rho each step").changed() {
+                    *rho = if auto { Rho::Auto } else { Rho::default() };
+                }
+                if let Rho::Fixed(r) = rho {
+                    ui.add(egui::Slider::new(r, 0.5..=0.9999).text("rho"));
+                }
+            }
         }
-        ui.add(egui::Slider::new(&mut x.max_iterations, 1..=200).text("Newton iterations (max)"));
-        ui.checkbox(&mut x.projected_only, "projected Hessian only");
-    }
-    if let Some(mut l) = linear {
-        if let LinearSolver::Cg(cg) = &mut l.solver {
-            ui.add(
-                egui::Slider::new(&mut cg.max_iterations, 1..=500)
-                    .text("CG iterations")
-                    .logarithmic(true),
-            );
-            let mut exponent = cg.tolerance.log10();
+        AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
+        AnyMethod::Symplectic(_) => {}
+        AnyMethod::Exact(x) => {
+            let mut exponent = x.tolerance.log10();
             if ui
-                .add(egui::Slider::new(&mut exponent, -12.0..=-1.0).text("tolerance (log10)"))
+                .add(
+                    egui::Slider::new(&mut exponent, -12.0..=-2.0)
+                        .text("gradient tolerance (log10)"),
+                )
                 .changed()
             {
-                cg.tolerance = 10f64.powf(exponent);
+                x.tolerance = 10f64.powf(exponent);
             }
-            let mut jacobi = cg.preconditioner == Preconditioner::Jacobi;
-            if ui.checkbox(&mut jacobi, "Jacobi preconditioner").changed() {
-                cg.preconditioner = if jacobi {
-                    Preconditioner::Jacobi
+            ui.add(
+                egui::Slider::new(&mut x.max_iterations, 1..=200).text("Newton iterations (max)"),
+            );
+            ui.checkbox(&mut x.projected_only, "projected Hessian only");
+        }
+        AnyMethod::Linear(l) => {
+            if let LinearSolver::Cg(cg) = &mut l.solver {
+                iterations_ui(ui, &mut cg.max_iterations, "CG iterations");
+                let mut exponent = cg.tolerance.log10();
+                if ui
+                    .add(egui::Slider::new(&mut exponent, -12.0..=-1.0).text("tolerance (log10)"))
+                    .changed()
+                {
+                    cg.tolerance = 10f64.powf(exponent);
+                }
+                let mut jacobi = cg.preconditioner == Preconditioner::Jacobi;
+                if ui.checkbox(&mut jacobi, "Jacobi preconditioner").changed() {
+                    cg.preconditioner = if jacobi {
+                        Preconditioner::Jacobi
+                    } else {
+                        Preconditioner::None
+                    };
+                }
+            }
+            let mut clamp = l.springs == SpringJacobian::ClampCompression;
+            if ui
+                .checkbox(&mut clamp, "drop compressive spring stiffness")
+                .changed()
+            {
+                l.springs = if clamp {
+                    SpringJacobian::ClampCompression
                 } else {
-                    Preconditioner::None
+                    SpringJacobian::Exact
                 };
             }
+            egui::ComboBox::from_label("penalty stiffness in A")
+                .selected_text(format!("{:?}", l.penalty))
+                .show_ui(ui, |ui| {
+                    for p in [
+                        PenaltyJacobian::Normal,
+                        PenaltyJacobian::Isotropic,
+                        PenaltyJacobian::Exact,
+                    ] {
+                        ui.selectable_value(&mut l.penalty, p, format!("{p:?}"));
+                    }
+                });
         }
-        let mut clamp = l.springs == SpringJacobian::ClampCompression;
-        if ui
-            .checkbox(&mut clamp, "drop compressive spring stiffness")
-            .changed()
-        {
-            l.springs = if clamp {
-                SpringJacobian::ClampCompression
-            } else {
-                SpringJacobian::Exact
-            };
-        }
-        egui::ComboBox::from_label("penalty stiffness in A")
-            .selected_text(format!("{:?}", l.penalty))
-            .show_ui(ui, |ui| {
-                for p in [
-                    PenaltyJacobian::Normal,
-                    PenaltyJacobian::Isotropic,
-                    PenaltyJacobian::Exact,
-                ] {
-                    ui.selectable_value(&mut l.penalty, p, format!("{p:?}"));
-                }
-            });
     }
+}
+
+fn iterations_ui(ui: &mut egui::Ui, iterations: &mut u32, text: &str) {
+    ui.add(
+        egui::Slider::new(iterations, 1..=512)
+            .text(text)
+            .logarithmic(true),
+    );
 }
 
 fn params_ui(ui: &mut egui::Ui, params: &mut Mut<ClothParams>) {

@@ -6,12 +6,15 @@ use std::time::Duration;
 
 use std::process::ExitCode;
 
+use bevy::asset::RenderAssetUsages;
 use bevy::picking::mesh_picking::MeshPickingPlugin;
 use bevy::prelude::*;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::window::WindowResolution;
+use bevy_cloth::drag::{DragPlugin, Dragging};
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{ClothRenderPlugin, DragPlugin, Dragging};
+use bevy_cloth::render::ClothRenderPlugin;
 use bevy_cloth::ui::ClothInspectorPlugin;
 use bevy_panorbit_camera::{PanOrbitCamera, PanOrbitCameraPlugin};
 
@@ -182,4 +185,29 @@ pub fn screenshot_and_exit(
             exit.write(AppExit::error());
         }
     }
+}
+
+/// A checkerboard texture (`cells×cells`, two colours) that makes folds
+/// readable on a cloth.
+pub fn checker_image(cells: u32, a: Color, b: Color) -> Image {
+    let size = cells * 16;
+    let (a, b) = (a.to_srgba().to_u8_array(), b.to_srgba().to_u8_array());
+    let mut data = Vec::with_capacity((size * size * 4) as usize);
+    for y in 0..size {
+        for x in 0..size {
+            let odd = ((x / 16) + (y / 16)) % 2 == 1;
+            data.extend_from_slice(if odd { &a } else { &b });
+        }
+    }
+    Image::new(
+        Extent3d {
+            width: size,
+            height: size,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        data,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::default(),
+    )
 }

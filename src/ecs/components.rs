@@ -102,7 +102,6 @@ impl Cloth {
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct ClothParams {
     /// Spring stiffness per kind (the lab: 8000 for all).
-    #[reflect(remote = crate::ecs::reflect::SpringStiffnessReflect)]
     pub stiffness: SpringStiffness,
     /// Velocity multiplier per step, in `[0, 1]` (the lab: 0.99).
     pub damping: f32,
@@ -112,6 +111,10 @@ pub struct ClothParams {
     /// happen at the sphere's radius plus this (the lab: 0; the assignment
     /// gives particles a small radius).
     pub particle_radius: f32,
+    /// Whether a large cloth may split its loops over Bevy's compute pool
+    /// (see [`StepParams::parallel`]; default `true`). Results are bitwise
+    /// the same either way.
+    pub parallel: bool,
 }
 
 impl Default for ClothParams {
@@ -122,6 +125,7 @@ impl Default for ClothParams {
             damping: lab.damping,
             gravity: lab.gravity,
             particle_radius: 0.0,
+            parallel: lab.parallel,
         }
     }
 }
@@ -134,6 +138,7 @@ impl ClothParams {
             stiffness: self.stiffness,
             damping: self.damping,
             gravity: self.gravity,
+            parallel: self.parallel,
         }
     }
 

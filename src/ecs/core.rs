@@ -7,7 +7,6 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 use bevy::utils::Parallel;
 
-use super::reflect::SpringStiffnessReflect;
 use super::{
     Cloth, ClothColliders, ClothDiverged, ClothGuard, ClothMethods, ClothParams, ClothStats,
     ClothStatus, ClothSystems, GuardAction,
@@ -45,7 +44,6 @@ impl Plugin for ClothCorePlugin {
             .register_type::<ClothParams>()
             .register_type::<ClothStats>()
             .register_type::<ClothGuard>()
-            .register_type::<SpringStiffnessReflect>()
             .init_resource::<ClothMethods>()
             .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()

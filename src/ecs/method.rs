@@ -10,45 +10,37 @@ use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
+use bevy::reflect::GetTypeRegistration;
 
 use super::{
     Cloth, ClothColliders, ClothGuard, ClothParams, ClothStats, ClothStatus, ClothSystems,
     GuardAction,
 };
 use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState};
+use crate::solver::Method;
 use crate::solver::guard::{GuardError, guarded_step};
-use crate::solver::{StepError, StepParams, StepReport};
 
-/// A simulation method: a component whose presence on a [`Cloth`] entity
-/// selects how that cloth is stepped.
+/// A method as the ECS sees it: a [`Method`] settings type that is also a
+/// reflected component. Every method of the crate's table
+/// ([`methods`](crate::methods)) is one; nothing to implement by hand.
 ///
 /// A cloth has at most one method: inserting one removes any other, so
 /// swapping the component switches the method at run time. Each method's
 /// scratch buffers live in a [`ClothWorkspace`] that is added with the
 /// method and removed with it.
-pub trait ClothMethod: Component<Mutability = Mutable> {
-    /// Name of the component kind, for [`ClothMethods`].
-    const KIND: &'static str;
-    /// Scratch buffers reused from step to step.
-    type Workspace: Default + Send + Sync + 'static;
+pub trait ClothMethod:
+    Method + Default + Component<Mutability = Mutable> + Reflect + TypePath + GetTypeRegistration
+{
+}
 
-    /// Short name of this configuration, shown in [`ClothStats::method`]
-    /// and messages (for example `"chebyshev"` or `"linear-cg"`).
-    fn name(&self) -> &'static str;
-
-    /// Registers the method's reflected types.
-    fn register_types(app: &mut App);
-
-    /// Advances `state` by one step, with penalty `spheres` acting inside it.
-    fn step(
-        &self,
-        model: &ClothModel,
-        state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
-        workspace: &mut Self::Workspace,
-    ) -> Result<StepReport, StepError>;
+impl<M> ClothMethod for M where
+    M: Method
+        + Default
+        + Component<Mutability = Mutable>
+        + Reflect
+        + TypePath
+        + GetTypeRegistration
+{
 }
 
 /// A method's scratch buffers on a cloth entity (not reflected: it holds no
@@ -70,9 +62,17 @@ pub struct ClothMethods {
 }
 
 impl ClothMethods {
-    /// Kinds of the registered methods, in registration order.
+    /// The registered methods, in registration order, each by the
+    /// [`Method::name`] of its default settings (`"jacobi"` for
+    /// [`ImplicitPlugin`](crate::ImplicitPlugin)).
     pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
         self.ids.iter().map(|&(_, _, name)| name)
+    }
+
+    /// True if the plugin of the method whose settings type has this
+    /// [`TypeId`] was added (see [`AnyMethod::type_id`](crate::methods::AnyMethod::type_id)).
+    pub fn contains(&self, type_id: TypeId) -> bool {
+        self.ids.iter().any(|&(_, t, _)| t == type_id)
     }
 }
 
@@ -89,7 +89,9 @@ pub(crate) fn add_method<M: ClothMethod>(app: &mut App, schedule: Interned<dyn S
     if methods.ids.iter().any(|&(i, _, _)| i == id) {
         return;
     }
-    methods.ids.push((id, TypeId::of::<M>(), M::KIND));
+    methods
+        .ids
+        .push((id, TypeId::of::<M>(), M::default().name()));
     app.add_systems(
         schedule,
         step_cloths::<M>
@@ -175,7 +177,8 @@ impl<M> core::fmt::Debug for MethodPlugin<M> {
 impl<M: ClothMethod> Plugin for MethodPlugin<M> {
     fn build(&self, app: &mut App) {
         super::ClothCorePlugin::new_interned(self.schedule).add_once(app);
-        M::register_types(app);
+        app.register_type::<M>()
+            .register_type_data::<M, ReflectComponent>();
         add_method::<M>(app, self.schedule);
     }
 }
@@ -187,7 +190,7 @@ type StepData<M> = (
     &'static ClothParams,
     &'static ClothGuard,
     &'static M,
-    &'static mut ClothWorkspace<<M as ClothMethod>::Workspace>,
+    &'static mut ClothWorkspace<<M as Method>::Workspace>,
     &'static mut ClothStats,
 );
 
@@ -263,7 +266,7 @@ fn step_cloths<M: ClothMethod>(
                 }
                 Err(GuardError::Refused(error)) => {
                     let text = error.to_string();
-                    if stats.status != ClothStatus::Invalid(text.clone()) {
+                    if !matches!(&stats.status, ClothStatus::Invalid(t) if *t == text) {
                         warn!("cloth {entity} ('{}') skipped: {text}", method.name());
                         stats.status = ClothStatus::Invalid(text);
                     }

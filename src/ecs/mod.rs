@@ -5,35 +5,19 @@
 //! [`solver`](crate::solver) and [`collision`](crate::collision), which know
 //! nothing of entities, schedules or time.
 
-mod assignment;
-mod choice;
 mod collision;
 mod components;
 mod core;
-mod implicit;
 mod method;
-mod pbd;
-mod reflect;
 mod schedule;
 
 use bevy::prelude::*;
 
 pub use crate::solver::guard::DivergenceReason;
-pub use assignment::{
-    ExactPlugin, ExactSolver, LinearImplicitPlugin, LinearImplicitSolver, SymplecticPlugin,
-    SymplecticSolver,
-};
-pub use choice::MethodChoice;
 pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
-pub use implicit::{Chebyshev, ImplicitPlugin, ImplicitSolver};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
-pub use pbd::{PbdPlugin, PbdSolver};
-pub use reflect::{
-    CgConfigReflect, LinearSolverReflect, PenaltyJacobianReflect, PreconditionerReflect,
-    SpringJacobianReflect, SpringStiffnessReflect,
-};
 pub use schedule::ClothSystems;
 
 /// Sent when the divergence guard rejects a cloth's step (see

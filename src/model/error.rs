@@ -100,39 +100,3 @@ pub enum MeshReadError {
     #[error("the mesh data is no longer available in the main world")]
     Extracted,
 }
-
-/// Why simulation parameters are invalid.
-///
-/// Returned by [`StepParams::validate`](crate::solver::StepParams::validate)
-/// and by every solver's step. Inside a running app the cloth is skipped and a
-/// warning is logged until the parameters are fixed.
-#[derive(Error, Debug, Clone, Copy, PartialEq)]
-pub enum ParamError {
-    /// The time step is zero, negative or not finite.
-    #[error("time step {0} must be finite and positive")]
-    TimeStep(f64),
-    /// A spring stiffness is zero, negative or not finite.
-    #[error("stiffness {0} must be finite and positive")]
-    Stiffness(f32),
-    /// Damping must lie in `[0, 1]` (it multiplies the velocity each step).
-    #[error("damping {0} must lie in [0, 1]")]
-    Damping(f32),
-    /// Gravity has a non-finite component.
-    #[error("gravity must be finite")]
-    Gravity,
-    /// A solver was asked for zero iterations.
-    #[error("a solver needs at least one iteration")]
-    Iterations,
-    /// Chebyshev's spectral radius estimate must lie in `(0, 1)`.
-    #[error("Chebyshev rho {0} must lie in (0, 1)")]
-    Rho(f32),
-    /// A solver tolerance is negative or not finite.
-    #[error("tolerance {0} must be finite and non-negative")]
-    Tolerance(f64),
-    /// A collider radius is negative or not finite.
-    #[error("collider radius {0} must be finite and non-negative")]
-    Radius(f32),
-    /// A divergence-guard bound is NaN, or a stretch bound is not positive.
-    #[error("guard bound {0} must be a positive number")]
-    Bound(f64),
-}

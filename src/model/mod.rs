@@ -12,7 +12,7 @@ mod topology;
 use std::sync::Arc;
 
 pub use builder::{ClothBuilder, Mass};
-pub use error::{ClothBuildError, MeshReadError, ParamError};
+pub use error::{ClothBuildError, MeshReadError};
 pub use state::ClothState;
 pub use topology::{Adjacency, ClothTopology, Incidence, Spring, SpringKind};
 

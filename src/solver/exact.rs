@@ -23,14 +23,23 @@
 
 use bevy::math::{DVec3, Vec3A};
 
-use super::linear::{LinearConfig, LinearSystem, PenaltyJacobian, SparseCholesky, SpringJacobian};
-use super::{StepError, StepParams, StepReport, check_state};
-use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState, ParamError};
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
 
-/// Settings of the exact solver.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ExactConfig {
+use super::cholesky::SparseCholesky;
+use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
+use super::{Method, ParamError, StepError, StepParams, StepReport, check_state};
+use crate::collision::PenaltySphere;
+use crate::model::{ClothModel, ClothState};
+
+/// Steps a cloth by exact implicit Euler: Newton's method with sparse
+/// Cholesky and a line search on the lab's objective, to a gradient
+/// tolerance (see the module docs). The reference the other methods are
+/// measured against. As a component on a cloth entity it selects this
+/// method ([`ExactPlugin`](crate::ExactPlugin)).
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Default, Debug, PartialEq)]
+pub struct ExactSolver {
     /// Relative gradient tolerance `‖∇Φ‖/‖∇Φ(x̃)‖` (default 1e-9).
     pub tolerance: f64,
     /// Newton iteration cap (default 100).
@@ -46,21 +55,42 @@ pub struct ExactConfig {
     pub line_search: bool,
 }
 
-impl Default for ExactConfig {
+impl ExactSolver {
+    /// The reference: relative gradient tolerance 1e-9, at most 100 Newton
+    /// iterations, the true Hessian where it factorises, line search.
+    pub const REFERENCE: Self = Self {
+        tolerance: 1e-9,
+        max_iterations: 100,
+        projected_only: false,
+        start_at_current: false,
+        line_search: true,
+    };
+}
+
+impl Default for ExactSolver {
+    /// [`ExactSolver::REFERENCE`].
     fn default() -> Self {
-        Self {
-            tolerance: 1e-9,
-            max_iterations: 100,
-            projected_only: false,
-            start_at_current: false,
-            line_search: true,
-        }
+        Self::REFERENCE
     }
 }
 
-impl ExactConfig {
-    /// Checks the settings.
-    pub fn validate(&self) -> Result<(), ParamError> {
+impl Method for ExactSolver {
+    type Workspace = ExactWorkspace;
+
+    fn name(&self) -> &'static str {
+        "exact"
+    }
+
+    fn iterations(&self) -> Option<u32> {
+        Some(self.max_iterations)
+    }
+
+    fn with_iterations(mut self, iterations: u32) -> Self {
+        self.max_iterations = iterations;
+        self
+    }
+
+    fn validate(&self) -> Result<(), ParamError> {
         if self.max_iterations == 0 {
             return Err(ParamError::Iterations);
         }
@@ -68,6 +98,17 @@ impl ExactConfig {
             return Err(ParamError::Tolerance(self.tolerance));
         }
         Ok(())
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut ExactWorkspace,
+    ) -> Result<StepReport, StepError> {
+        step(model, state, params, self, spheres, workspace)
     }
 }
 
@@ -204,7 +245,7 @@ pub fn step(
     model: &ClothModel,
     state: &mut ClothState,
     params: &StepParams,
-    config: &ExactConfig,
+    config: &ExactSolver,
     spheres: &[PenaltySphere],
     ws: &mut ExactWorkspace,
 ) -> Result<StepReport, StepError> {
@@ -264,7 +305,7 @@ pub fn step(
         // The Hessian, scaled by h²: (M − h²K) at x.
         let mut solved = false;
         for projected in [config.projected_only, true] {
-            let hessian = LinearConfig {
+            let hessian = LinearImplicitSolver {
                 springs: if projected {
                     SpringJacobian::ClampCompression
                 } else {
@@ -275,7 +316,7 @@ pub fn step(
                 } else {
                     PenaltyJacobian::Exact
                 },
-                ..LinearConfig::default()
+                ..LinearImplicitSolver::default()
             };
             system.assemble_at(model, &ws.x, &ws.zeros, params, &hessian, spheres);
             for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {

@@ -2,8 +2,8 @@ use bevy::math::Affine3A;
 
 use super::*;
 use crate::model::ClothBuilder;
-use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use crate::solver::linear::{self as lin, LinearConfig, LinearSolver, LinearWorkspace};
+use crate::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use crate::solver::linear::{self as lin, LinearImplicitSolver, LinearSolver, LinearWorkspace};
 use crate::solver::step_error;
 
 fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
@@ -15,7 +15,7 @@ fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
             &model,
             &mut state,
             &StepParams::LAB,
-            &ExactConfig::default(),
+            &ExactSolver::default(),
             &[],
             &mut ws,
         )
@@ -40,7 +40,7 @@ fn implicit_error(
     params: &StepParams,
     start: &ClothState,
     exact: &ClothState,
-    config: ImplicitConfig,
+    config: ImplicitSolver,
 ) -> f64 {
     let mut state = start.clone();
     implicit::step(
@@ -58,7 +58,7 @@ fn implicit_error(
 fn exact_step(
     model: &ClothModel,
     start: &ClothState,
-    config: &ExactConfig,
+    config: &ExactSolver,
 ) -> (ClothState, ExactReport, u32) {
     let mut state = start.clone();
     let mut ws = ExactWorkspace::default();
@@ -70,7 +70,7 @@ fn exact_step(
 fn the_exact_step_meets_its_gradient_tolerance() {
     for steps in [0, 10, 40] {
         let (model, start) = lab_swinging(steps);
-        let (state, report, iterations) = exact_step(&model, &start, &ExactConfig::default());
+        let (state, report, iterations) = exact_step(&model, &start, &ExactSolver::default());
         assert!(report.converged, "after {steps}: {report:?}");
         assert!(
             report.relative_gradient <= 1e-9
@@ -87,11 +87,11 @@ fn the_exact_step_meets_its_gradient_tolerance() {
 #[test]
 fn the_true_hessian_converges_in_fewer_iterations_than_the_projected_one() {
     let (model, start) = lab_swinging(10);
-    let (a, true_report, true_iterations) = exact_step(&model, &start, &ExactConfig::default());
-    let projected = ExactConfig {
+    let (a, true_report, true_iterations) = exact_step(&model, &start, &ExactSolver::default());
+    let projected = ExactSolver {
         projected_only: true,
         max_iterations: 1000,
-        ..ExactConfig::default()
+        ..ExactSolver::default()
     };
     let (b, projected_report, projected_iterations) = exact_step(&model, &start, &projected);
     assert!(true_report.converged && projected_report.converged);
@@ -107,14 +107,14 @@ fn the_true_hessian_converges_in_fewer_iterations_than_the_projected_one() {
 #[test]
 fn jacobi_and_chebyshev_errors_fall_with_iterations_and_chebyshev_is_lower() {
     let (model, start) = lab_swinging(10);
-    let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
+    let (exact, _, _) = exact_step(&model, &start, &ExactSolver::default());
     let error =
-        |config: ImplicitConfig| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
+        |config: ImplicitSolver| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
     let jacobi: Vec<f64> = [4, 16, 64, 256]
-        .map(|k| error(ImplicitConfig::jacobi(k)))
+        .map(|k| error(ImplicitSolver::jacobi(k)))
         .to_vec();
     let chebyshev: Vec<f64> = [4, 16, 64, 256]
-        .map(|k| error(ImplicitConfig::chebyshev(k, 0.995)))
+        .map(|k| error(ImplicitSolver::chebyshev(k, 0.995)))
         .to_vec();
     for w in jacobi.windows(2) {
         assert!(w[1] < w[0], "jacobi {jacobi:?}");
@@ -131,9 +131,9 @@ fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
     let params = assignment_params();
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = LinearWorkspace::default();
-    let direct = LinearConfig {
+    let direct = LinearImplicitSolver {
         solver: LinearSolver::Direct,
-        ..LinearConfig::default()
+        ..LinearImplicitSolver::default()
     };
     for _ in 0..30 {
         lin::step(&model, &mut start, &params, &direct, &[], &mut ws).unwrap();
@@ -141,12 +141,12 @@ fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
     let mut linear_state = start.clone();
     lin::step(&model, &mut linear_state, &params, &direct, &[], &mut ws).unwrap();
     let mut newton_state = start.clone();
-    let config = ExactConfig {
+    let config = ExactSolver {
         max_iterations: 1,
         start_at_current: true,
         line_search: false,
         tolerance: 0.0,
-        ..ExactConfig::default()
+        ..ExactSolver::default()
     };
     let mut exact_ws = ExactWorkspace::default();
     step(
@@ -173,9 +173,9 @@ fn cg_error_falls_with_iterations_against_the_direct_solve() {
     let model = ClothBuilder::assignment(12, 12).build().unwrap();
     let params = assignment_params();
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-    let direct = LinearConfig {
+    let direct = LinearImplicitSolver {
         solver: LinearSolver::Direct,
-        ..LinearConfig::default()
+        ..LinearImplicitSolver::default()
     };
     let mut ws = LinearWorkspace::default();
     for _ in 0..30 {
@@ -187,13 +187,13 @@ fn cg_error_falls_with_iterations_against_the_direct_solve() {
         .iter()
         .map(|&k| {
             let mut s = start.clone();
-            let config = LinearConfig {
+            let config = LinearImplicitSolver {
                 solver: LinearSolver::Cg(lin::CgConfig {
                     max_iterations: k,
                     tolerance: 0.0,
                     ..lin::CgConfig::default()
                 }),
-                ..LinearConfig::default()
+                ..LinearImplicitSolver::default()
             };
             lin::step(
                 &model,
@@ -225,7 +225,7 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
             &model,
             &mut start,
             &params,
-            &ExactConfig::default(),
+            &ExactSolver::default(),
             &[],
             &mut ws,
         )
@@ -236,14 +236,14 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
         &model,
         &mut exact,
         &params,
-        &ExactConfig::default(),
+        &ExactSolver::default(),
         &[],
         &mut ws,
     )
     .unwrap();
-    let error = |config: ImplicitConfig| implicit_error(&model, &params, &start, &exact, config);
+    let error = |config: ImplicitSolver| implicit_error(&model, &params, &start, &exact, config);
     let jacobi: Vec<f64> = [8, 64, 512]
-        .map(|k| error(ImplicitConfig::jacobi(k)))
+        .map(|k| error(ImplicitSolver::jacobi(k)))
         .to_vec();
     // By 64 iterations Jacobi may already sit at its f32 fixed point (the
     // error then stays the same to the last bit), so 512 only must not be
@@ -254,7 +254,7 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
     );
     assert!(jacobi[2] < 1e-4, "{jacobi:?}");
     let auto: Vec<f64> = [8, 64, 512]
-        .map(|k| error(ImplicitConfig::chebyshev_auto(k)))
+        .map(|k| error(ImplicitSolver::chebyshev_auto(k)))
         .to_vec();
     assert!(auto[2] < 1e-3, "{auto:?}");
     assert!(auto[1] < jacobi[1], "auto {auto:?} jacobi {jacobi:?}");
@@ -263,12 +263,12 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
 #[test]
 fn estimated_rho_accelerates_the_lab_step() {
     let (model, start) = lab_swinging(10);
-    let (exact, _, _) = exact_step(&model, &start, &ExactConfig::default());
+    let (exact, _, _) = exact_step(&model, &start, &ExactSolver::default());
     let error =
-        |config: ImplicitConfig| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
+        |config: ImplicitSolver| implicit_error(&model, &StepParams::LAB, &start, &exact, config);
     for k in [32, 128] {
-        let jacobi = error(ImplicitConfig::jacobi(k));
-        let auto = error(ImplicitConfig::chebyshev_auto(k));
+        let jacobi = error(ImplicitSolver::jacobi(k));
+        let auto = error(ImplicitSolver::chebyshev_auto(k));
         assert!(auto < 0.5 * jacobi, "K = {k}: auto {auto} jacobi {jacobi}");
     }
 }

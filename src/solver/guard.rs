@@ -19,8 +19,9 @@
 
 use bevy::reflect::Reflect;
 
+use super::ParamError;
 use super::{StepError, StepParams, StepReport, energy, max_stretch};
-use crate::model::{ClothModel, ClothState, ParamError};
+use crate::model::{ClothModel, ClothState};
 
 /// Why the guard rejected a step.
 #[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -24,15 +24,19 @@
 
 use bevy::math::Vec3A;
 
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
+
+use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
 use super::{
-    StepError, StepParams, StepReport, check_state, for_chunks, for_chunks2, spring_terms,
-    stiffness_coeffs,
+    LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport, check_state,
 };
 use crate::collision::PenaltySphere;
-use crate::model::{Adjacency, ClothModel, ClothState, ParamError, SpringKind};
+use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
 
 /// The spectral radius `ρ` that Chebyshev acceleration assumes.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Debug, PartialEq, Default)]
 pub enum Rho {
     /// A fixed value in `(0, 1)` (the lab: 0.995).
     Fixed(f32),
@@ -43,16 +47,27 @@ pub enum Rho {
     Auto,
 }
 
-/// Settings of the implicit solver.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ImplicitConfig {
+impl Default for Rho {
+    /// The lab's fixed `ρ = 0.995`.
+    fn default() -> Self {
+        Self::Fixed(LAB_RHO)
+    }
+}
+
+/// Steps a cloth by implicit Euler with the lab's diagonal-Hessian Newton
+/// (Jacobi) iteration, optionally Chebyshev-accelerated (see the module
+/// docs). As a component on a cloth entity it selects this method
+/// ([`ImplicitPlugin`](crate::ImplicitPlugin)).
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Default, Debug, PartialEq)]
+pub struct ImplicitSolver {
     /// Jacobi iterations per step (the lab: 32).
     pub iterations: u32,
     /// Chebyshev acceleration with this `ρ`, or `None` for plain Jacobi.
     pub chebyshev: Option<Rho>,
 }
 
-impl ImplicitConfig {
+impl ImplicitSolver {
     /// Plain Jacobi with `iterations` iterations.
     pub const fn jacobi(iterations: u32) -> Self {
         Self {
@@ -76,9 +91,36 @@ impl ImplicitConfig {
             chebyshev: Some(Rho::Auto),
         }
     }
+}
 
-    /// Checks the settings.
-    pub fn validate(&self) -> Result<(), ParamError> {
+impl Default for ImplicitSolver {
+    /// The lab: 32 plain Jacobi iterations.
+    fn default() -> Self {
+        Self::jacobi(LAB_ITERATIONS)
+    }
+}
+
+impl Method for ImplicitSolver {
+    type Workspace = ImplicitWorkspace;
+
+    fn name(&self) -> &'static str {
+        match self.chebyshev {
+            None => "jacobi",
+            Some(Rho::Fixed(_)) => "chebyshev",
+            Some(Rho::Auto) => "chebyshev-auto",
+        }
+    }
+
+    fn iterations(&self) -> Option<u32> {
+        Some(self.iterations)
+    }
+
+    fn with_iterations(mut self, iterations: u32) -> Self {
+        self.iterations = iterations;
+        self
+    }
+
+    fn validate(&self) -> Result<(), ParamError> {
         if self.iterations == 0 {
             return Err(ParamError::Iterations);
         }
@@ -89,12 +131,16 @@ impl ImplicitConfig {
         }
         Ok(())
     }
-}
 
-impl Default for ImplicitConfig {
-    /// The lab: 32 plain Jacobi iterations.
-    fn default() -> Self {
-        Self::jacobi(32)
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut ImplicitWorkspace,
+    ) -> Result<StepReport, StepError> {
+        step(model, state, params, self, spheres, workspace)
     }
 }
 
@@ -231,7 +277,7 @@ pub fn step(
     model: &ClothModel,
     state: &mut ClothState,
     params: &StepParams,
-    config: &ImplicitConfig,
+    config: &ImplicitSolver,
     spheres: &[PenaltySphere],
     ws: &mut ImplicitWorkspace,
 ) -> Result<StepReport, StepError> {
@@ -303,14 +349,20 @@ pub fn step(
     };
     ws.update_norms.clear();
     for k in 0..config.iterations {
-        spring_terms(model, x, &ws.coeffs, &mut ws.gather.terms[..springs.len()]);
+        spring_terms(
+            params.parallel,
+            model,
+            x,
+            &ws.coeffs,
+            &mut ws.gather.terms[..springs.len()],
+        );
         let pass = VertexPass::new(&ws.gather, model, spheres);
         // A pinned vertex has a zero inverse diagonal, so neither update
         // moves it (Chebyshev: its iterate and the one before are equal).
         match config.chebyshev {
             None => {
                 let pass = &pass;
-                for_chunks(x, move |start, x| {
+                for_chunks(params.parallel, x, move |start, x| {
                     for (j, xi) in x.iter_mut().enumerate() {
                         let (g, d) = pass.gradient(start + j, *xi);
                         *xi -= g * d;
@@ -332,6 +384,7 @@ pub fn step(
                 // Copies, so the loop keeps them in registers.
                 let (measure, omega, pass) = (k < delay, omega, &pass);
                 for_chunks2(
+                    params.parallel,
                     x,
                     &mut ws.x_prev,
                     &mut ws.chunk_sums,
@@ -360,7 +413,13 @@ pub fn step(
     }
 
     // Residual at the final iterate: the gradient over free vertices.
-    spring_terms(model, x, &ws.coeffs, &mut ws.gather.terms[..springs.len()]);
+    spring_terms(
+        params.parallel,
+        model,
+        x,
+        &ws.coeffs,
+        &mut ws.gather.terms[..springs.len()],
+    );
     let pass = VertexPass::new(&ws.gather, model, spheres);
     let mut residual = 0.0f32;
     for i in 0..n {

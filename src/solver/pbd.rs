@@ -18,34 +18,74 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state, spring_scales};
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
+
+use super::kernels::spring_scales;
+use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport, check_state};
 use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState, ParamError};
+use crate::model::{ClothModel, ClothState};
 
 /// The weight of a vertex's own position in the lab's Jacobi average.
 pub const SELF_WEIGHT: f32 = 0.2;
 
-/// Settings of the PBD solver.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PbdConfig {
+/// Steps a cloth by position-based dynamics with the lab's Jacobi strain
+/// limiting (see the module docs). Spring stiffness is not used. As a
+/// component on a cloth entity it selects this method
+/// ([`PbdPlugin`](crate::PbdPlugin)).
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Default, Debug, PartialEq)]
+pub struct PbdSolver {
     /// Strain-limiting iterations per step.
     pub iterations: u32,
 }
 
-impl PbdConfig {
-    /// Checks the settings.
-    pub fn validate(&self) -> Result<(), ParamError> {
+impl PbdSolver {
+    /// With `iterations` strain-limiting iterations.
+    pub const fn new(iterations: u32) -> Self {
+        Self { iterations }
+    }
+}
+
+impl Default for PbdSolver {
+    /// 32 iterations (the lab leaves the count open; this matches part 1).
+    fn default() -> Self {
+        Self::new(LAB_ITERATIONS)
+    }
+}
+
+impl Method for PbdSolver {
+    type Workspace = PbdWorkspace;
+
+    fn name(&self) -> &'static str {
+        "pbd"
+    }
+
+    fn iterations(&self) -> Option<u32> {
+        Some(self.iterations)
+    }
+
+    fn with_iterations(mut self, iterations: u32) -> Self {
+        self.iterations = iterations;
+        self
+    }
+
+    fn validate(&self) -> Result<(), ParamError> {
         if self.iterations == 0 {
             return Err(ParamError::Iterations);
         }
         Ok(())
     }
-}
 
-impl Default for PbdConfig {
-    /// 32 iterations (the lab leaves the count open; this matches part 1).
-    fn default() -> Self {
-        Self { iterations: 32 }
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut PbdWorkspace,
+    ) -> Result<StepReport, StepError> {
+        step(model, state, params, self, spheres, workspace)
     }
 }
 
@@ -68,7 +108,7 @@ pub fn step(
     model: &ClothModel,
     state: &mut ClothState,
     params: &StepParams,
-    config: &PbdConfig,
+    config: &PbdSolver,
     spheres: &[PenaltySphere],
     ws: &mut PbdWorkspace,
 ) -> Result<StepReport, StepError> {

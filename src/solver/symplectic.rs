@@ -10,9 +10,44 @@
 
 use bevy::math::Vec3A;
 
-use super::{StepError, StepParams, StepReport, check_state, spring_terms, stiffness_coeffs};
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
+
+use super::kernels::{spring_terms, stiffness_coeffs};
+use super::{Method, ParamError, StepError, StepParams, StepReport, check_state};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+
+/// Steps a cloth by symplectic Euler (`A = M`, the assignment's first
+/// stage): `v ← v + h M⁻¹f`, `x ← x + h v` (see the module docs). Explicit,
+/// so stable only for small steps. No settings. As a component on a cloth
+/// entity it selects this method ([`SymplecticPlugin`](crate::SymplecticPlugin)).
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Default, Debug, PartialEq)]
+pub struct SymplecticSolver;
+
+impl Method for SymplecticSolver {
+    type Workspace = SymplecticWorkspace;
+
+    fn name(&self) -> &'static str {
+        "symplectic"
+    }
+
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut SymplecticWorkspace,
+    ) -> Result<StepReport, StepError> {
+        step(model, state, params, spheres, workspace)
+    }
+}
 
 /// Scratch of the symplectic solver: one term per spring.
 #[derive(Clone, Debug, Default)]
@@ -35,7 +70,13 @@ pub fn step(
         .resize(model.topology().springs().len(), Vec3A::ZERO);
     // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
     stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-    spring_terms(model, &state.positions, &ws.coeffs, &mut ws.terms);
+    spring_terms(
+        params.parallel,
+        model,
+        &state.positions,
+        &ws.coeffs,
+        &mut ws.terms,
+    );
     let h = params.dt as f32;
     let gravity = Vec3A::from(params.gravity);
     let adjacency = model.topology().adjacency();

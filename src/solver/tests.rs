@@ -1,9 +1,10 @@
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
-use super::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use super::pbd::{self, PbdConfig, PbdWorkspace};
+use super::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use super::pbd::{self, PbdSolver, PbdWorkspace};
 use super::*;
-use crate::model::{ClothBuilder, ClothModel, ClothState, ParamError};
+use crate::model::{ClothBuilder, ClothModel, ClothState};
+use crate::solver::ParamError;
 
 fn lab() -> (ClothModel, ClothState) {
     let model = ClothBuilder::lab().build().unwrap();
@@ -31,7 +32,7 @@ fn swinging(steps: usize) -> (ClothModel, ClothState) {
             &model,
             &mut state,
             &StepParams::LAB,
-            &ImplicitConfig::default(),
+            &ImplicitSolver::default(),
             &[],
             &mut ws,
         )
@@ -84,7 +85,7 @@ fn gradient_matches_finite_differences() {
 #[test]
 fn jacobi_residual_falls_with_iterations_and_chebyshev_beats_it() {
     let (model, start) = swinging(20);
-    let residual = |config: ImplicitConfig| {
+    let residual = |config: ImplicitSolver| {
         let mut state = start.clone();
         let mut ws = ImplicitWorkspace::default();
         implicit::step(&model, &mut state, &StepParams::LAB, &config, &[], &mut ws)
@@ -92,11 +93,11 @@ fn jacobi_residual_falls_with_iterations_and_chebyshev_beats_it() {
             .residual
             .unwrap()
     };
-    let r8 = residual(ImplicitConfig::jacobi(8));
-    let r32 = residual(ImplicitConfig::jacobi(32));
-    let r128 = residual(ImplicitConfig::jacobi(128));
+    let r8 = residual(ImplicitSolver::jacobi(8));
+    let r32 = residual(ImplicitSolver::jacobi(32));
+    let r128 = residual(ImplicitSolver::jacobi(128));
     assert!(r32 < r8 && r128 < r32, "{r8} {r32} {r128}");
-    let c32 = residual(ImplicitConfig::chebyshev(32, 0.995));
+    let c32 = residual(ImplicitSolver::chebyshev(32, 0.995));
     assert!(c32 < r32, "chebyshev {c32} jacobi {r32}");
 }
 
@@ -111,7 +112,7 @@ fn implicit_step_keeps_pins_and_is_deterministic() {
                 &model,
                 &mut state,
                 &StepParams::LAB,
-                &ImplicitConfig::chebyshev(32, 0.995),
+                &ImplicitSolver::chebyshev(32, 0.995),
                 &[],
                 &mut ws,
             )
@@ -166,7 +167,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &model,
             &mut state,
             &params,
-            &ImplicitConfig::default(),
+            &ImplicitSolver::default(),
             &[],
             &mut ImplicitWorkspace::default(),
         )
@@ -176,7 +177,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &model,
             &mut state,
             &params,
-            &PbdConfig::default(),
+            &PbdSolver::default(),
             &[],
             &mut PbdWorkspace::default(),
         )
@@ -190,7 +191,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &model,
             &mut state,
             &StepParams::LAB,
-            &ImplicitConfig::chebyshev(32, 1.0),
+            &ImplicitSolver::chebyshev(32, 1.0),
             &[],
             &mut ImplicitWorkspace::default()
         ),
@@ -201,7 +202,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &model,
             &mut state,
             &StepParams::LAB,
-            &PbdConfig { iterations: 0 },
+            &PbdSolver { iterations: 0 },
             &[],
             &mut PbdWorkspace::default()
         ),
@@ -213,7 +214,7 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
             &model,
             &mut state,
             &StepParams::LAB,
-            &PbdConfig::default(),
+            &PbdSolver::default(),
             &[],
             &mut PbdWorkspace::default()
         ),
@@ -234,7 +235,7 @@ fn pbd_stretch_falls_with_iterations_and_pins_hold() {
                 &model,
                 &mut state,
                 &StepParams::LAB,
-                &PbdConfig { iterations },
+                &PbdSolver { iterations },
                 &[],
                 &mut ws,
             )

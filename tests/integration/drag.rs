@@ -6,8 +6,8 @@ use bevy::picking::events::{Drag, DragStart, Pointer, Press, Release};
 use bevy::picking::pointer::{Location, PointerButton, PointerId};
 use bevy::prelude::*;
 use bevy::window::{WindowRef, WindowResolution};
+use bevy_cloth::drag::{DragPlugin, Draggable, Dragging, pointer_ray};
 use bevy_cloth::prelude::*;
-use bevy_cloth::render::{DragPlugin, Draggable, Dragging, pointer_ray};
 
 use crate::common::*;
 

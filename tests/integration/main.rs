@@ -3,9 +3,7 @@
 
 mod assignment;
 mod common;
-#[cfg(feature = "render")]
+#[cfg(feature = "picking")]
 mod drag;
-mod fuzz;
 mod plugin;
 mod scenes;
-mod stability;

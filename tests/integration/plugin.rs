@@ -1,8 +1,8 @@
 //! Plugin mechanics: schedule, pins, method switching, errors, guard.
 
 use bevy::prelude::*;
-use bevy_cloth::ClothMethods;
 use bevy_cloth::prelude::*;
+use bevy_cloth::{ClothMethods, Preset};
 
 use crate::common::*;
 
@@ -305,8 +305,8 @@ fn components_are_reflected_and_registered() {
         "bevy_cloth::ecs::components::Cloth",
         "bevy_cloth::ecs::components::ClothParams",
         "bevy_cloth::ecs::components::ClothStats",
-        "bevy_cloth::ecs::implicit::ImplicitSolver",
-        "bevy_cloth::ecs::pbd::PbdSolver",
+        "bevy_cloth::solver::implicit::ImplicitSolver",
+        "bevy_cloth::solver::pbd::PbdSolver",
         "bevy_cloth::ecs::collision::SphereCollider",
     ] {
         let registration = registry
@@ -362,8 +362,8 @@ fn pausing_stops_every_cloth_and_single_steps_run_one_step() {
 #[test]
 fn teleporting_the_cloth_entity_and_the_sphere_never_lets_a_nan_out() {
     let mut app = app();
-    let cloths: Vec<(MethodChoice, Entity)> = MethodChoice::ALL
-        .into_iter()
+    let cloths: Vec<(&Preset, Entity)> = PRESETS
+        .iter()
         .map(|m| {
             let e = app
                 .world_mut()
@@ -372,7 +372,7 @@ fn teleporting_the_cloth_entity_and_the_sphere_never_lets_a_nan_out() {
                     Transform::default(),
                 ))
                 .id();
-            m.insert(&mut app.world_mut().commands().entity(e));
+            m.method.insert(&mut app.world_mut().commands().entity(e));
             (m, e)
         })
         .collect();

@@ -28,8 +28,8 @@ use bevy_017::math::{Mat4, Vec3 as Vec3Silk};
 use bevy_017::platform::collections::HashMap;
 use bevy_cloth::model::{ClothModel, ClothState};
 use bevy_cloth::report::perf::{Timing, scale_model, time_samples};
-use bevy_cloth::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use bevy_cloth::solver::pbd::{self, PbdConfig, PbdWorkspace};
+use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use bevy_cloth::solver::pbd::{self, PbdSolver, PbdWorkspace};
 use bevy_cloth::solver::{StepParams, max_stretch};
 use bevy_silk::components::cloth::Cloth as SilkCloth;
 use bevy_silk::prelude::{StickGeneration, StickLen, StickMode};
@@ -166,14 +166,14 @@ fn main() {
         let model = scale_model(n);
         let (silk_t, silk_stretch) = silk(&model, &params);
         let mut pbd_ws = PbdWorkspace::default();
-        let config = PbdConfig {
+        let config = PbdSolver {
             iterations: ITERATIONS,
         };
         let pbd = ours(&model, |state| {
             pbd::step(&model, state, &params, &config, &[], &mut pbd_ws).expect("valid step");
         });
         let mut cheb_ws = ImplicitWorkspace::default();
-        let config = ImplicitConfig::chebyshev(ITERATIONS, 0.995);
+        let config = ImplicitSolver::chebyshev(ITERATIONS, 0.995);
         let cheb = ours(&model, |state| {
             implicit::step(&model, state, &params, &config, &[], &mut cheb_ws).expect("valid step");
         });

@@ -15,12 +15,12 @@ use bevy::math::Affine3A;
 use indicatif::ProgressBar;
 use plotters::prelude::*;
 
-use crate::model::ClothState;
-use crate::solver::StepParams;
-use crate::solver::any::AnyMethod;
-use crate::stability::{
+use crate::scenarios::{
     Outcome, Scenario, Verdict, explicit_limit, map_methods, measured_explicit_limit, sweep,
 };
+use bevy_cloth::methods::AnyMethod;
+use bevy_cloth::model::ClothState;
+use bevy_cloth::solver::StepParams;
 
 /// What the stability map sweeps.
 #[derive(Clone, Debug)]
@@ -100,9 +100,9 @@ fn cell(o: &Outcome) -> String {
 /// markdown.
 pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     std::fs::create_dir_all(&config.out_dir)?;
-    super::register_chart_font();
+    crate::chart::register_chart_font();
     let methods = map_methods();
-    let labels: Vec<String> = methods.iter().map(AnyMethod::label).collect();
+    let labels: Vec<String> = methods.iter().map(crate::variant).collect();
     let total = config.stiffnesses.len() * config.time_steps.len()
         + config.resolutions.len()
         + config.large.map_or(0, |n| Scenario::extreme_cases(n).len());
@@ -158,7 +158,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     .ok();
     write!(md, "| n |").ok();
     for m in &iterative {
-        write!(md, " {} |", m.label()).ok();
+        write!(md, " {} |", crate::variant(m)).ok();
     }
     writeln!(md, "\n|---|{}", "---|".repeat(iterative.len())).ok();
     for &n in &config.resolutions {
@@ -250,7 +250,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
          32 iterations (Jacobi, Chebyshev with the lab's ρ = 0.995 or with ρ estimated, PBD), CG \
          with 25 iterations, the linearly implicit methods with compression-clamped and with exact \
          (`exact K`) spring blocks.",
-        super::machine(),
+        crate::chart::machine(),
         started.elapsed().as_secs_f64()
     )
     .ok();
@@ -357,7 +357,7 @@ mod tests {
     fn the_stability_map_runs_end_to_end_on_a_tiny_configuration() {
         let dir = std::env::temp_dir().join(format!("bevy_cloth_stability_{}", std::process::id()));
         let md = run(&StabilityConfig::tiny(&dir)).unwrap();
-        assert!(md.contains("### chebyshev ρ=0.995"));
+        assert!(md.contains("### chebyshev\n") && md.contains("### chebyshev-auto\n"), "{md}");
         assert!(md.contains("## Extreme cases"));
         assert!(!md.contains("FAILED"), "{md}");
         let svg = std::fs::read_to_string(dir.join("stability.svg")).unwrap();

@@ -7,7 +7,7 @@ use bevy_cloth::collision::PenaltySphere;
 use bevy_cloth::model::{ClothBuilder, ClothModel};
 use bevy_cloth::solver::guard::GuardBounds;
 use bevy_cloth::solver::{SpringStiffness, StepParams};
-use bevy_cloth::stability::{Scenario, map_methods, run};
+use bevy_cloth_report::scenarios::{Scenario, map_methods, run};
 use proptest::prelude::*;
 
 /// A random triangle soup: vertices in a 10-unit box, triangles of three
@@ -119,7 +119,7 @@ proptest! {
             // Invalid parameters are refused with a typed error; nothing
             // panics and nothing non-finite passes the guard.
             if let Some(why) = &r.failed {
-                prop_assert!(why.starts_with("refused"), "{}: {why}", method.label());
+                prop_assert!(why.starts_with("refused"), "{}: {why}", method.name());
             }
             prop_assert!(r.state.is_finite());
         }

@@ -25,17 +25,15 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
-use crate::collision::PenaltySphere;
-use crate::model::{ClothBuilder, ClothModel, ClothState};
-use crate::solver::any::{AnyMethod, AnyWorkspace};
-use crate::solver::exact::ExactConfig;
-use crate::solver::guard::{
+use bevy_cloth::collision::PenaltySphere;
+use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
+use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
+use bevy_cloth::solver::exact::ExactSolver;
+use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
-use crate::solver::implicit::ImplicitConfig;
-use crate::solver::linear::{CgConfig, LinearConfig, LinearSolver, SpringJacobian};
-use crate::solver::pbd::PbdConfig;
-use crate::solver::{SpringStiffness, StepParams, energy, max_stretch};
+use bevy_cloth::solver::linear::SpringJacobian;
+use bevy_cloth::solver::{SpringStiffness, StepParams, energy, max_stretch};
 
 /// Something that happens to the scene at the start of a step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -228,32 +226,18 @@ impl Scenario {
     }
 }
 
-/// The methods of the stability map, each at its interactive setting: 32
-/// iterations for the iterative implicit and PBD methods (Chebyshev with the
-/// lab's fixed ρ = 0.995 and with ρ estimated), CG with 25 iterations, the
-/// linearly implicit methods with clamped and with exact spring blocks, and
-/// the exact method.
+/// The methods of the stability map: every preset at its interactive
+/// setting ([`PRESETS`]: 32 iterations for the iterative lab methods, CG with
+/// 25, the linearly implicit methods with clamped spring blocks, the exact
+/// method), and the linearly implicit methods again with the assignment's
+/// exact spring blocks.
 pub fn map_methods() -> Vec<AnyMethod> {
-    let linear = |solver, springs| {
-        AnyMethod::Linear(LinearConfig {
-            solver,
-            springs,
-            ..LinearConfig::default()
-        })
-    };
-    let cg = LinearSolver::Cg(CgConfig::default());
-    vec![
-        AnyMethod::Implicit(ImplicitConfig::jacobi(32)),
-        AnyMethod::Implicit(ImplicitConfig::chebyshev(32, 0.995)),
-        AnyMethod::Implicit(ImplicitConfig::chebyshev_auto(32)),
-        AnyMethod::Pbd(PbdConfig::default()),
-        AnyMethod::Symplectic,
-        linear(cg, SpringJacobian::ClampCompression),
-        linear(cg, SpringJacobian::Exact),
-        linear(LinearSolver::Direct, SpringJacobian::ClampCompression),
-        linear(LinearSolver::Direct, SpringJacobian::Exact),
-        AnyMethod::Exact(ExactConfig::default()),
-    ]
+    let mut methods: Vec<AnyMethod> = PRESETS.iter().map(|p| p.method).collect();
+    methods.extend(PRESETS.iter().filter_map(|p| match p.method {
+        AnyMethod::Linear(l) => Some(AnyMethod::Linear(l.with_springs(SpringJacobian::Exact))),
+        _ => None,
+    }));
+    methods
 }
 
 /// The end of one run.
@@ -404,7 +388,7 @@ impl Verdict {
 /// One classified run.
 #[derive(Clone, Debug)]
 pub struct Outcome {
-    /// The method's label ([`AnyMethod::label`]).
+    /// The method's label ([`AnyMethod::name`]).
     pub method: String,
     /// The verdict.
     pub verdict: Verdict,
@@ -448,7 +432,7 @@ pub fn classify(scenario: &Scenario, method: &AnyMethod, run: Run, reference: &R
         }
     };
     Outcome {
-        method: method.label(),
+        method: crate::variant(method),
         verdict,
         run,
         max_stretch: stretch,
@@ -457,7 +441,7 @@ pub fn classify(scenario: &Scenario, method: &AnyMethod, run: Run, reference: &R
 
 /// The exact method's run that `method` is compared with.
 pub fn reference_for(scenario: &Scenario, method: &AnyMethod) -> Run {
-    let exact = AnyMethod::Exact(ExactConfig::default());
+    let exact = AnyMethod::Exact(ExactSolver::REFERENCE);
     run_with(scenario, &exact, &scenario.reference_params(method))
 }
 
@@ -478,7 +462,7 @@ pub fn sweep(scenario: &Scenario, methods: &[AnyMethod]) -> Vec<Outcome> {
             let reference = slot
                 .get_or_insert_with(|| reference_for(scenario, m))
                 .clone();
-            let r = if *m == AnyMethod::Exact(ExactConfig::default()) {
+            let r = if *m == AnyMethod::Exact(ExactSolver::REFERENCE) {
                 reference.clone()
             } else {
                 run(scenario, m)
@@ -599,7 +583,7 @@ pub fn measured_explicit_limit(
         let mid = 0.5 * (lo + hi);
         let mut s = scenario.clone().with_steps(steps);
         s.params.dt = mid;
-        let r = run(&s, &AnyMethod::Symplectic);
+        let r = run(&s, &AnyMethod::Symplectic(Default::default()));
         if r.caught.is_none() && r.failed.is_none() {
             lo = mid;
         } else {

@@ -12,6 +12,7 @@ fn spec_params() -> StepParams {
         stiffness: SpringStiffness::uniform(10.0),
         damping: 1.0,
         gravity: Vec3::new(0.0, -9.8, 0.0),
+        parallel: true,
     }
 }
 
@@ -23,7 +24,7 @@ fn assemble(
     model: &ClothModel,
     state: &ClothState,
     params: &StepParams,
-    config: &LinearConfig,
+    config: &LinearImplicitSolver,
     spheres: &[PenaltySphere],
 ) -> LinearSystem {
     let mut system = LinearSystem::new(model);
@@ -81,7 +82,7 @@ fn golden_first_step_of_the_assignment() {
         &model,
         &rest(&model),
         &spec_params(),
-        &LinearConfig::default(),
+        &LinearImplicitSolver::default(),
         &[],
     );
     assert_eq!(system.dimension(), 6);
@@ -131,7 +132,7 @@ fn stiffness_and_force(
     model: &ClothModel,
     x: &[Vec3A],
     params: &StepParams,
-    config: &LinearConfig,
+    config: &LinearImplicitSolver,
     spheres: &[PenaltySphere],
 ) -> (Vec<f64>, Vec<f64>, usize) {
     let zero = vec![Vec3A::ZERO; x.len()];
@@ -187,9 +188,9 @@ fn assembled_stiffness_matches_finite_differences_of_the_force() {
         radius: 0.1,
         stiffness: 50.0,
     };
-    let config = LinearConfig {
+    let config = LinearImplicitSolver {
         penalty: PenaltyJacobian::Exact,
-        ..LinearConfig::default()
+        ..LinearImplicitSolver::default()
     };
     let (k, _, n) = stiffness_and_force(&model, &x, &params, &config, &[sphere]);
     let system = LinearSystem::new(&model);
@@ -251,7 +252,13 @@ fn sparse_matches_a_dense_reference() {
         *v = noise(&mut seed);
     }
     let params = spec_params();
-    let system = assemble(&model, &state, &params, &LinearConfig::default(), &[]);
+    let system = assemble(
+        &model,
+        &state,
+        &params,
+        &LinearImplicitSolver::default(),
+        &[],
+    );
     // An independent dense assembly over all 3·12 coordinates, then the
     // fixed particles' rows and columns dropped.
     let nv = model.vertex_count();
@@ -320,7 +327,7 @@ fn step_with(
     model: &ClothModel,
     start: &ClothState,
     params: &StepParams,
-    config: &LinearConfig,
+    config: &LinearImplicitSolver,
 ) -> (ClothState, StepReport) {
     let mut state = start.clone();
     let mut ws = LinearWorkspace::default();
@@ -334,9 +341,9 @@ fn cg_converges_to_the_direct_solution() {
     let params = spec_params();
     let mut start = rest(&model);
     let mut ws = LinearWorkspace::default();
-    let direct_config = LinearConfig {
+    let direct_config = LinearImplicitSolver {
         solver: LinearSolver::Direct,
-        ..LinearConfig::default()
+        ..LinearImplicitSolver::default()
     };
     for _ in 0..20 {
         step(&model, &mut start, &params, &direct_config, &[], &mut ws).unwrap();
@@ -344,13 +351,13 @@ fn cg_converges_to_the_direct_solution() {
     let (direct, report) = step_with(&model, &start, &params, &direct_config);
     assert!(report.residual.unwrap() < 1e-12, "{report:?}");
     let error = |iterations: u32, preconditioner: Preconditioner| {
-        let config = LinearConfig {
+        let config = LinearImplicitSolver {
             solver: LinearSolver::Cg(CgConfig {
                 max_iterations: iterations,
                 tolerance: 1e-14,
                 preconditioner,
             }),
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         };
         let (cg, _) = step_with(&model, &start, &params, &config);
         cg.velocities
@@ -378,9 +385,9 @@ fn the_pattern_is_built_once_and_fixed_particles_never_move() {
         .collect();
     let mut ws = LinearWorkspace::default();
     for solver in [LinearSolver::Direct, LinearSolver::Cg(CgConfig::default())] {
-        let config = LinearConfig {
+        let config = LinearImplicitSolver {
             solver,
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         };
         for _ in 0..50 {
             step(&model, &mut state, &spec_params(), &config, &[], &mut ws).unwrap();
@@ -401,7 +408,7 @@ fn the_pattern_is_built_once_and_fixed_particles_never_move() {
         &repinned,
         &mut other,
         &spec_params(),
-        &LinearConfig::default(),
+        &LinearImplicitSolver::default(),
         &[],
         &mut ws,
     )
@@ -421,9 +428,9 @@ fn penalty_jacobians_differ_in_definiteness() {
     };
     let params = spec_params();
     let matrix = |penalty| {
-        let config = LinearConfig {
+        let config = LinearImplicitSolver {
             penalty,
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         };
         assemble(&model, &state, &params, &config, &[sphere]).to_dense()
     };
@@ -463,9 +470,9 @@ fn clamping_compression_keeps_the_matrix_definite() {
         ..spec_params()
     };
     let dense = |springs| {
-        let config = LinearConfig {
+        let config = LinearImplicitSolver {
             springs,
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         };
         let system = assemble(&model, &state, &params, &config, &[]);
         (system.to_dense(), system.dimension())
@@ -488,11 +495,11 @@ fn a_penalty_sphere_pushes_particles_out() {
         stiffness: 100.0,
     };
     for config in [
-        LinearConfig::default(),
-        LinearConfig {
+        LinearImplicitSolver::default(),
+        LinearImplicitSolver {
             solver: LinearSolver::Direct,
             penalty: PenaltyJacobian::Isotropic,
-            ..LinearConfig::default()
+            ..LinearImplicitSolver::default()
         },
     ] {
         let mut state = rest(&model);

@@ -1,9 +1,11 @@
-//! The error-against-run-time report (cargo feature `report`): every method
-//! measured against the exact implicit-Euler step, charted and tabulated.
+//! The error-against-run-time report: every method measured against the
+//! exact implicit-Euler step, charted and tabulated.
 //!
-//! Run it with `cargo run --release --example report`; it writes
+//! Run it with `cargo run --release -p bevy_cloth_report`; it writes
 //! `docs/report/README.md` and SVG charts. [`run`] does the work, so a game
-//! can also report on its own cloths.
+//! can also report on its own cloths. The methods are bevy_cloth's
+//! [`PRESETS`], each iterative one at several iteration counts, named by
+//! their preset names.
 //!
 //! # Measures
 //!
@@ -21,9 +23,6 @@
 //!
 //! Times are medians of repeated runs of the step (state copy excluded).
 
-pub mod perf;
-pub mod stability;
-
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -32,14 +31,14 @@ use bevy::math::{Affine3A, Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 use plotters::prelude::*;
 
-use crate::collision::PenaltySphere;
-use crate::model::{ClothBuilder, ClothModel, ClothState};
-use crate::solver::any::{AnyMethod, AnyWorkspace};
-use crate::solver::exact::{self, ExactConfig};
-use crate::solver::implicit::{self, ImplicitConfig, ImplicitWorkspace};
-use crate::solver::linear::{CgConfig, LinearConfig, LinearSolver, SpringJacobian};
-use crate::solver::pbd::PbdConfig;
-use crate::solver::{SpringStiffness, StepParams, step_error};
+use crate::chart::{log_log_chart, machine, register_chart_font};
+use bevy_cloth::collision::PenaltySphere;
+use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
+use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
+use bevy_cloth::solver::exact::{self, ExactSolver, ExactWorkspace};
+use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use bevy_cloth::solver::linear::LinearSolver;
+use bevy_cloth::solver::{SpringStiffness, StepParams, step_error};
 
 /// One scene of the report.
 #[derive(Clone, Debug)]
@@ -106,6 +105,7 @@ impl ReportScene {
                 stiffness: SpringStiffness::uniform(10.0),
                 damping: 1.0,
                 gravity: Vec3::new(0.0, -9.8, 0.0),
+                ..StepParams::LAB
             },
             spheres: Vec::new(),
             warmup: 60,
@@ -168,89 +168,31 @@ impl ReportConfig {
     }
 }
 
-/// A method at one setting (`Chebyshev(k, 0.0)` is `ρ: Auto`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Method {
-    Jacobi(u32),
-    Chebyshev(u32, f32),
-    Cg(u32),
-    Direct,
-    Newton(u32),
-    Symplectic,
-    Pbd(u32),
-}
-
-impl Method {
-    fn family(&self) -> &'static str {
-        match self {
-            Method::Jacobi(_) => "Jacobi",
-            Method::Chebyshev(_, rho) if *rho == 0.995 => "Chebyshev (ρ = 0.995)",
-            Method::Chebyshev(..) => "Chebyshev (ρ: Auto)",
-            Method::Cg(_) => "linearly implicit, CG",
-            Method::Direct => "linearly implicit, direct",
-            Method::Newton(_) => "exact (Newton iterations)",
-            Method::Symplectic => "symplectic Euler",
-            Method::Pbd(_) => "PBD",
-        }
-    }
-
-    fn iterations(&self) -> Option<u32> {
-        match *self {
-            Method::Jacobi(k)
-            | Method::Chebyshev(k, _)
-            | Method::Cg(k)
-            | Method::Newton(k)
-            | Method::Pbd(k) => Some(k),
-            Method::Direct | Method::Symplectic => None,
-        }
-    }
-}
-
-impl Method {
-    /// The solver setting this point runs: the linearly implicit methods
-    /// with compression-clamped spring blocks, CG to a fixed iteration count.
-    fn solver(self) -> AnyMethod {
-        let clamp = LinearConfig {
-            springs: SpringJacobian::ClampCompression,
-            ..LinearConfig::default()
-        };
-        match self {
-            Method::Jacobi(k) => AnyMethod::Implicit(ImplicitConfig::jacobi(k)),
-            Method::Chebyshev(k, rho) if rho > 0.0 => {
-                AnyMethod::Implicit(ImplicitConfig::chebyshev(k, rho))
+/// The report's setting of a method at `k` iterations: CG runs exactly `k`
+/// iterations (tolerance 0), Newton at most `k`.
+fn at_iterations(method: AnyMethod, k: u32) -> AnyMethod {
+    match method.with_iterations(k) {
+        AnyMethod::Linear(mut linear) => {
+            if let LinearSolver::Cg(cg) = &mut linear.solver {
+                cg.tolerance = 0.0;
             }
-            Method::Chebyshev(k, _) => AnyMethod::Implicit(ImplicitConfig::chebyshev_auto(k)),
-            Method::Cg(k) => AnyMethod::Linear(LinearConfig {
-                solver: LinearSolver::Cg(CgConfig {
-                    max_iterations: k,
-                    tolerance: 0.0,
-                    ..CgConfig::default()
-                }),
-                ..clamp
-            }),
-            Method::Direct => AnyMethod::Linear(LinearConfig {
-                solver: LinearSolver::Direct,
-                ..clamp
-            }),
-            Method::Newton(k) => AnyMethod::Exact(ExactConfig {
-                max_iterations: k,
-                ..ExactConfig::default()
-            }),
-            Method::Symplectic => AnyMethod::Symplectic,
-            Method::Pbd(k) => AnyMethod::Pbd(PbdConfig { iterations: k }),
+            AnyMethod::Linear(linear)
         }
+        other => other,
     }
 }
+
+/// The reference step: [`ExactSolver::REFERENCE`].
+const EXACT: AnyMethod = AnyMethod::Exact(ExactSolver::REFERENCE);
 
 /// One step of `method`; false if the method refused or failed.
 fn step(
-    method: Method,
+    method: AnyMethod,
     scene: &ReportScene,
     state: &mut ClothState,
     ws: &mut AnyWorkspace,
 ) -> bool {
     method
-        .solver()
         .step(&scene.model, state, &scene.params, &scene.spheres, ws)
         .is_ok()
 }
@@ -263,7 +205,7 @@ fn median(mut xs: Vec<Duration>) -> Duration {
 /// One measured point.
 #[derive(Clone, Copy, Debug)]
 struct Point {
-    method: Method,
+    method: AnyMethod,
     micros: f64,
     /// Relative spread of the repeats: (max − min)/median.
     spread: f64,
@@ -303,7 +245,7 @@ pub fn estimate_rho(
                 model,
                 &mut a,
                 params,
-                &ImplicitConfig::jacobi(k),
+                &ImplicitSolver::jacobi(k),
                 &[],
                 &mut ws,
             );
@@ -312,7 +254,7 @@ pub fn estimate_rho(
                     model,
                     &mut b,
                     params,
-                    &ImplicitConfig::jacobi(k - 1),
+                    &ImplicitSolver::jacobi(k - 1),
                     &[],
                     &mut ws,
                 );
@@ -368,18 +310,6 @@ pub fn run(config: &ReportConfig) -> std::io::Result<String> {
     Ok(md)
 }
 
-pub(crate) fn machine() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "an unknown CPU".into())
-}
-
 fn scene_report(
     config: &ReportConfig,
     scene: &ReportScene,
@@ -390,17 +320,17 @@ fn scene_report(
     let rest = ClothState::at_rest(&scene.model, &Affine3A::IDENTITY);
     let mut start = rest.clone();
     for _ in 0..scene.warmup {
-        step(Method::Newton(100), scene, &mut start, &mut ws);
+        step(EXACT, scene, &mut start, &mut ws);
     }
     let mut exact_state = start.clone();
-    step(Method::Newton(100), scene, &mut exact_state, &mut ws);
-    let exact_report = ws.exact.last_report();
+    step(EXACT, scene, &mut exact_state, &mut ws);
+    let exact_report = ws.get::<ExactWorkspace>().last_report();
     let projected = {
         let mut s = start.clone();
-        let config = ExactConfig {
+        let config = ExactSolver {
             projected_only: true,
             max_iterations: 1000,
-            ..ExactConfig::default()
+            ..ExactSolver::REFERENCE
         };
         let _ = exact::step(
             &scene.model,
@@ -408,25 +338,28 @@ fn scene_report(
             &scene.params,
             &config,
             &scene.spheres,
-            &mut ws.exact,
+            ws.get::<ExactWorkspace>(),
         );
-        ws.exact.last_report()
+        ws.get::<ExactWorkspace>().last_report()
     };
     let rho = estimate_rho(&scene.model, &start, &scene.params, 64);
 
+    // Every preset: the iterative ones at each iteration count (Newton up
+    // to 16), the others once.
     let mut methods = Vec::new();
-    for &k in &config.iterations {
-        methods.push(Method::Jacobi(k));
-        methods.push(Method::Chebyshev(k, 0.995));
-        methods.push(Method::Chebyshev(k, 0.0));
-        methods.push(Method::Cg(k));
-        methods.push(Method::Pbd(k));
-        if k <= 16 {
-            methods.push(Method::Newton(k));
+    for preset in PRESETS {
+        let method = preset.method;
+        match method.iterations() {
+            Some(_) => methods.extend(
+                config
+                    .iterations
+                    .iter()
+                    .filter(|&&k| !matches!(method, AnyMethod::Exact(_)) || k <= 16)
+                    .map(|&k| at_iterations(method, k)),
+            ),
+            None => methods.push(method),
         }
     }
-    methods.push(Method::Direct);
-    methods.push(Method::Symplectic);
     let bar = progress(config, methods.len() as u64, &scene.title);
     let mut points = Vec::new();
     let mut pbd_rows = Vec::new();
@@ -445,9 +378,9 @@ fn scene_report(
         let mid = median(times);
         let micros = mid.as_secs_f64() * 1e6;
         let spread = (hi - lo).as_secs_f64() / mid.as_secs_f64().max(1e-12);
-        if let Method::Pbd(k) = method {
+        if let AnyMethod::Pbd(pbd) = method {
             let (mean, max) = strain(&scene.model, &result.positions);
-            pbd_rows.push((k, micros, mean, max));
+            pbd_rows.push((pbd.iterations, micros, mean, max));
             continue;
         }
         let error = if ok && result.is_finite() {
@@ -465,15 +398,24 @@ fn scene_report(
     bar.finish_and_clear();
 
     // Trajectories from rest.
+    // Every preset but PBD (a different problem) and the exact method (the
+    // reference itself).
     let mut trajectory_methods = Vec::new();
-    for &k in &config.trajectory_iterations {
-        trajectory_methods.push(Method::Jacobi(k));
-        trajectory_methods.push(Method::Chebyshev(k, 0.995));
-        trajectory_methods.push(Method::Chebyshev(k, 0.0));
-        trajectory_methods.push(Method::Cg(k));
+    for preset in PRESETS {
+        let method = preset.method;
+        if matches!(method, AnyMethod::Pbd(_) | AnyMethod::Exact(_)) {
+            continue;
+        }
+        match method.iterations() {
+            Some(_) => trajectory_methods.extend(
+                config
+                    .trajectory_iterations
+                    .iter()
+                    .map(|&k| at_iterations(method, k)),
+            ),
+            None => trajectory_methods.push(method),
+        }
     }
-    trajectory_methods.push(Method::Direct);
-    trajectory_methods.push(Method::Symplectic);
     let bar = progress(
         config,
         trajectory_methods.len() as u64 + 1,
@@ -482,7 +424,7 @@ fn scene_report(
     let mut exact_end = rest.clone();
     let t = Instant::now();
     for _ in 0..config.trajectory_steps {
-        step(Method::Newton(100), scene, &mut exact_end, &mut ws);
+        step(EXACT, scene, &mut exact_end, &mut ws);
     }
     let exact_micros = t.elapsed().as_secs_f64() * 1e6 / config.trajectory_steps as f64;
     bar.inc(1);
@@ -564,7 +506,7 @@ fn scene_report(
     .ok();
     writeln!(md, "|---|---|---|---|---|").ok();
     let families: Vec<&str> = {
-        let mut f: Vec<&str> = points.iter().map(|p| p.method.family()).collect();
+        let mut f: Vec<&str> = points.iter().map(|p| p.method.name()).collect();
         f.dedup();
         let mut unique = Vec::new();
         for x in f {
@@ -577,7 +519,7 @@ fn scene_report(
     let reach = |family: &str, threshold: f64| -> Option<Point> {
         points
             .iter()
-            .filter(|p| p.method.family() == family && p.error <= threshold)
+            .filter(|p| p.method.name() == family && p.error <= threshold)
             .min_by(|a, b| a.micros.total_cmp(&b.micros))
             .copied()
     };
@@ -591,7 +533,7 @@ fn scene_report(
     for family in &families {
         let best = points
             .iter()
-            .filter(|p| p.method.family() == *family)
+            .filter(|p| p.method.name() == *family)
             .min_by(|a, b| a.error.total_cmp(&b.error))
             .copied();
         writeln!(
@@ -609,8 +551,8 @@ fn scene_report(
     }
     let ratio = |threshold: f64| -> String {
         match (
-            reach("Jacobi", threshold).and_then(|p| p.method.iterations()),
-            reach("Chebyshev (ρ = 0.995)", threshold).and_then(|p| p.method.iterations()),
+            reach("jacobi", threshold).and_then(|p| p.method.iterations()),
+            reach("chebyshev", threshold).and_then(|p| p.method.iterations()),
         ) {
             (Some(j), Some(c)) => format!("{:.1}", f64::from(j) / f64::from(c)),
             (None, Some(c)) => format!(
@@ -661,7 +603,7 @@ fn scene_report(
         writeln!(
             md,
             "| {} | {} | {:.0} | {} |",
-            p.method.family(),
+            p.method.name(),
             p.method.iterations().map_or("-".into(), |k| k.to_string()),
             p.micros,
             if p.error.is_finite() {
@@ -711,8 +653,8 @@ fn chart(path: &Path, title: &str, points: &[Point], x_label: &str) -> Result<()
     };
     let mut families: Vec<&str> = Vec::new();
     for p in &finite {
-        if !families.contains(&p.method.family()) {
-            families.push(p.method.family());
+        if !families.contains(&p.method.name()) {
+            families.push(p.method.name());
         }
     }
     let series: Vec<(&str, Vec<(f64, f64)>)> = families
@@ -720,7 +662,7 @@ fn chart(path: &Path, title: &str, points: &[Point], x_label: &str) -> Result<()
         .map(|family| {
             let mut points: Vec<(f64, f64)> = finite
                 .iter()
-                .filter(|p| p.method.family() == *family)
+                .filter(|p| p.method.name() == *family)
                 .map(|p| (p.micros, p.error))
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -738,67 +680,6 @@ fn chart(path: &Path, title: &str, points: &[Point], x_label: &str) -> Result<()
     )
 }
 
-/// Registers the charts' font (a font egui ships), for every chart.
-pub(crate) fn register_chart_font() {
-    let _ = plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        epaint_default_fonts::UBUNTU_LIGHT,
-    );
-}
-
-/// Draws named series of points as lines with dots on log–log axes over
-/// `ranges` (x, y), with a legend, into an SVG file.
-pub(crate) fn log_log_chart(
-    path: &Path,
-    size: (u32, u32),
-    title: &str,
-    (x_desc, y_desc): (&str, &str),
-    (x_range, y_range): (std::ops::Range<f64>, std::ops::Range<f64>),
-    series: &[(&str, Vec<(f64, f64)>)],
-    legend: SeriesLabelPosition,
-) -> Result<(), String> {
-    let root = SVGBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    for (i, (label, points)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(*label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| e.to_string())?;
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(legend)
-        .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -809,7 +690,7 @@ mod tests {
         let md = run(&ReportConfig::tiny(&dir)).unwrap();
         assert!(md.contains("## Lab cloth 6×6, hanging"));
         assert!(md.contains("Jacobi/Chebyshev iteration ratio"));
-        assert!(md.contains("Chebyshev (ρ: Auto)"));
+        assert!(md.contains("| chebyshev-auto |"), "{md}");
         // Every method ran: none failed on its first step.
         assert!(!md.contains("inf ("), "{md}");
         for file in ["README.md", "lab6-step.svg", "lab6-trajectory.svg"] {
@@ -817,7 +698,7 @@ mod tests {
             assert!(text.len() > 500, "{file} is too short");
         }
         let svg = std::fs::read_to_string(dir.join("lab6-step.svg")).unwrap();
-        assert!(svg.contains("Jacobi") && svg.contains("<circle"));
+        assert!(svg.contains("jacobi") && svg.contains("<circle"));
         let _ = std::fs::remove_dir_all(&dir);
     }
 

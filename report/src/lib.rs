@@ -1,0 +1,51 @@
+//! Measurement tooling for [`bevy_cloth`]: what the crate's pages are made
+//! of, kept out of the library that games depend on.
+//!
+//! - [`accuracy`]: the error-against-run-time report (`docs/report/README.md`):
+//!   every method's per-step and trajectory error against the exact
+//!   implicit-Euler step, as a function of its run time.
+//! - [`scenarios`] and [`stability`]: stiff and extreme cases run under the
+//!   divergence guard and classified against the exact method, and the
+//!   stability map (`docs/report/stability.md`).
+//! - [`perf`]: the performance page (`docs/perf.md`): every method from 21²
+//!   to 256², many cloths, the sparse CG step against its parts, the
+//!   machine's limits.
+//!
+//! The methods come from bevy_cloth's method table
+//! ([`bevy_cloth::methods::PRESETS`]), named as everywhere else.
+//!
+//! ```text
+//! cargo run --release -p bevy_cloth_report [-- --out docs/report] [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --stability [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
+//! ```
+
+pub mod accuracy;
+pub mod chart;
+pub mod perf;
+pub mod scenarios;
+pub mod stability;
+
+use bevy_cloth::methods::AnyMethod;
+use bevy_cloth::solver::linear::SpringJacobian;
+
+/// A method's name with its iteration count, as the pages' tables and
+/// charts name a setting: `chebyshev 32`, `linear-cg 25`, `exact`.
+pub fn label(method: &AnyMethod) -> String {
+    match (method, method.iterations()) {
+        // Newton's count is a cap, not the work done: the name alone.
+        (AnyMethod::Exact(_), _) | (_, None) => variant(method),
+        (_, Some(k)) => format!("{} {k}", variant(method)),
+    }
+}
+
+/// A method's name, with `exact-k` after a linearly implicit one that uses
+/// the assignment's exact spring blocks (the presets clamp compression).
+pub fn variant(method: &AnyMethod) -> String {
+    match method {
+        AnyMethod::Linear(l) if l.springs == SpringJacobian::Exact => {
+            format!("{} exact-k", method.name())
+        }
+        _ => method.name().to_owned(),
+    }
+}

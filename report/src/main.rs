@@ -1,0 +1,149 @@
+//! Writes bevy_cloth's measured pages.
+//!
+//! ```text
+//! cargo run --release -p bevy_cloth_report [-- --out docs/report] [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --stability [--out docs/report] [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
+//! ```
+//!
+//! With no mode: the error-against-run-time report (`README.md` and SVG
+//! charts), every method measured against the exact implicit-Euler step.
+//! `--stability`: the stability map (`stability.md`, `stability.svg`), every
+//! method × stiffness × time step, resolutions and extreme cases, classified
+//! against the exact method. `--perf`: the performance page (`perf.md`,
+//! `perf-scaling.svg`).
+
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use bevy_cloth_report::accuracy::{self, ReportConfig};
+use bevy_cloth_report::perf::{self, PerfConfig};
+use bevy_cloth_report::stability::{self, StabilityConfig};
+
+const USAGE: &str = "usage: bevy_cloth_report [--stability | --perf] [--out DIR] [--tiny] \
+                     [--sizes 21,51] [--only NAME] [--seconds S]";
+
+#[derive(PartialEq)]
+enum Mode {
+    Accuracy,
+    Stability,
+    Perf,
+}
+
+struct Options {
+    mode: Mode,
+    out: Option<String>,
+    tiny: bool,
+    sizes: Option<Vec<usize>>,
+    only: Option<String>,
+    seconds: Option<f64>,
+}
+
+fn parse() -> Result<Options, String> {
+    let mut o = Options {
+        mode: Mode::Accuracy,
+        out: None,
+        tiny: false,
+        sizes: None,
+        only: None,
+        seconds: None,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let mut value = || args.next().ok_or(format!("{arg} needs a value"));
+        match arg.as_str() {
+            "--stability" => o.mode = Mode::Stability,
+            "--perf" => o.mode = Mode::Perf,
+            "--out" => o.out = Some(value()?),
+            "--tiny" => o.tiny = true,
+            "--sizes" => {
+                let list = value()?
+                    .split(',')
+                    .map(|n| n.trim().parse::<usize>())
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(|e| format!("--sizes: {e}"))?;
+                if list.iter().any(|&n| n < 2) {
+                    return Err("--sizes: every size must be at least 2".into());
+                }
+                o.sizes = Some(list);
+            }
+            "--only" => o.only = Some(value()?),
+            "--seconds" => match value()?.parse::<f64>() {
+                Ok(s) if s > 0.0 && s.is_finite() => o.seconds = Some(s),
+                _ => return Err("--seconds needs a positive number".into()),
+            },
+            _ => return Err(format!("unknown argument '{arg}'")),
+        }
+    }
+    if o.mode != Mode::Perf && (o.sizes.is_some() || o.only.is_some() || o.seconds.is_some()) {
+        return Err("--sizes, --only and --seconds go with --perf".into());
+    }
+    Ok(o)
+}
+
+fn main() -> ExitCode {
+    let o = match parse() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}\n{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    let result = match o.mode {
+        Mode::Accuracy => {
+            let out = o.out.unwrap_or_else(|| "docs/report".into());
+            let config = if o.tiny {
+                ReportConfig::tiny(&out)
+            } else {
+                ReportConfig::full(&out)
+            };
+            accuracy::run(&config).map(|_| format!("wrote {out}/README.md"))
+        }
+        Mode::Stability => {
+            let out = o.out.unwrap_or_else(|| "docs/report".into());
+            let config = if o.tiny {
+                StabilityConfig::tiny(&out)
+            } else {
+                StabilityConfig::full(&out)
+            };
+            stability::run(&config).map(|_| format!("wrote {out}/stability.md"))
+        }
+        Mode::Perf => {
+            let out = o.out.unwrap_or_else(|| "docs".into());
+            let mut config = if o.tiny {
+                PerfConfig::tiny(&out)
+            } else {
+                PerfConfig::full(&out)
+            };
+            if let Some(sizes) = o.sizes {
+                config.sizes = sizes;
+            }
+            if let Some(s) = o.seconds {
+                config.budget = Duration::from_secs_f64(s);
+            }
+            let profiling = o.only.is_some();
+            config.only = o.only;
+            let start = Instant::now();
+            perf::run(&config, |what| {
+                eprintln!("[{:>6.1} s] {what}", start.elapsed().as_secs_f64())
+            })
+            .map(|md| {
+                if profiling {
+                    md
+                } else {
+                    format!("wrote {out}/perf.md and {out}/perf-scaling.svg")
+                }
+            })
+        }
+    };
+    match result {
+        Ok(message) => {
+            println!("{message}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

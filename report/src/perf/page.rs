@@ -1,0 +1,384 @@
+//! The page: `perf.md` and `perf-scaling.svg` from the sweep and the probe.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+use plotters::prelude::*;
+
+use super::machine::last_level_cache;
+use super::sweep::spring_pass_share;
+use super::*;
+
+/// Runs the page and writes its files. Returns the markdown.
+pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<String> {
+    std::fs::create_dir_all(&config.out_dir)?;
+    crate::chart::register_chart_font();
+    // Two compute threads for the parallel columns (Bevy's default plugin
+    // would give this 2-core machine one).
+    let pool = ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+    let threads = pool.thread_num();
+
+    if config.only.is_some() {
+        let cases = sweep(config, &progress);
+        let mut md = String::new();
+        for c in cases {
+            write!(md, "{} {}²: {}", c.method, c.n, c.serial.cell()).ok();
+            if let Some(p) = c.parallel {
+                write!(md, "; parallel {}", p.cell()).ok();
+            }
+            writeln!(md, "; guard {}", c.guard.as_deref().unwrap_or("silent")).ok();
+        }
+        return Ok(md);
+    }
+    progress("limits");
+    let limits = limits(config);
+    let cases = sweep(config, &progress);
+    progress("spring pass at 21²");
+    let split = spring_pass_share(config);
+    progress("many cloths");
+    let one_app = many_cloths(config, 1);
+    let many_app = many_cloths(config, config.many);
+    progress("CG parts");
+    let cg = cg_parts(config);
+
+    let mut md = String::new();
+    let w = &mut md;
+    writeln!(w, "# Performance").ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "Written by `cargo run --release --example perf` ({}). Machine: {}, {} logical cores; \
+         compute pool for the parallel columns: {threads} threads. Build: release, baseline \
+         x86-64 target (SSE2, 4-lane packed `f32`).",
+        std::env::consts::ARCH,
+        crate::chart::machine(),
+        std::thread::available_parallelism().map_or(0, |n| n.get()),
+    )
+    .ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "Method: each case starts every sample from the same swinging state (20 Chebyshev \
+         steps from rest; the state copy is not timed), warms up twice, then samples for \
+         {:.1} s (at least {} samples). Cells are `median (first–third quartile)`. The cloth \
+         is the lab's, physically the same at every size: 10×10 units, total mass 441, \
+         corners pinned, k = 8000 at every resolution (a row of n − 1 springs in series has \
+         stiffness k/(n − 1) and n rows act in parallel, so the sheet's stiffness stays about \
+         k), dt = 0.0333, damping 0.99. \"guard\" is the divergence guard's default check on \
+         the timed step's result: silent means it would have accepted it.",
+        config.budget.as_secs_f64(),
+        config.min_samples
+    )
+    .ok();
+    writeln!(w).ok();
+
+    writeln!(w, "## Time per step against cloth size").ok();
+    writeln!(w).ok();
+    writeln!(w, "![time per step against vertices](perf-scaling.svg)").ok();
+    writeln!(w).ok();
+    write!(w, "| method |").ok();
+    for n in &config.sizes {
+        write!(w, " {n}² ({} vertices) |", n * n).ok();
+    }
+    writeln!(w).ok();
+    write!(w, "|---|").ok();
+    for _ in &config.sizes {
+        write!(w, "---|").ok();
+    }
+    writeln!(w).ok();
+    for (name, _, _) in sweep_methods() {
+        write!(w, "| {name} |").ok();
+        for &n in &config.sizes {
+            match cases.iter().find(|c| c.method == name && c.n == n) {
+                Some(c) => {
+                    write!(w, " {}", c.serial.cell()).ok();
+                    if let Some(p) = c.parallel {
+                        write!(w, "; {threads} threads: {}", p.cell()).ok();
+                    }
+                    match &c.guard {
+                        None => write!(w, " |").ok(),
+                        Some(why) => write!(w, " ⚠ guard: {why} |").ok(),
+                    };
+                }
+                None => {
+                    write!(w, " – |").ok();
+                }
+            }
+        }
+        writeln!(w).ok();
+    }
+    writeln!(w).ok();
+    let silent = cases.iter().filter(|c| c.guard.is_none()).count();
+    writeln!(
+        w,
+        "{silent} of {} timed steps pass the guard's check. Sparse methods stop at {}².",
+        cases.len(),
+        config.max_side_sparse
+    )
+    .ok();
+    writeln!(w).ok();
+    if let Some(big) = cases
+        .iter()
+        .filter(|c| c.method == "Chebyshev 32")
+        .max_by_key(|c| c.n)
+    {
+        let best = big
+            .parallel
+            .map_or(big.serial.median, |p| p.median.min(big.serial.median));
+        writeln!(
+            w,
+            "Chebyshev 32 at {}²: {:.1} steps per second ({}).",
+            big.n,
+            1.0 / best,
+            human(best)
+        )
+        .ok();
+        writeln!(w).ok();
+    }
+
+    if let Some((springs, step)) = split {
+        writeln!(
+            w,
+            "The lab step at 21² (Chebyshev 32), timed again beside 32 bare spring passes (so \
+             its median differs a little from the tables'): {} per step, of which the 32 spring \
+             passes take {} ({:.0} %) and the 32 vertex passes (gather and update) most of the \
+             rest. The target was 100 µs.",
+            human(step),
+            human(springs),
+            100.0 * springs / step
+        )
+        .ok();
+        writeln!(w).ok();
+    }
+
+    writeln!(w, "## Many cloths").ok();
+    writeln!(w).ok();
+    let single = cases
+        .iter()
+        .find(|c| c.method == "Chebyshev 32" && c.n == 21)
+        .map(|c| c.serial.median);
+    writeln!(
+        w,
+        "One `App::update` (one fixed step of every cloth, guard and stats included; \
+         `MinimalPlugins` + `ClothPlugins`, the compute pool at {threads} threads) with lab \
+         cloths of 21², Chebyshev 32:"
+    )
+    .ok();
+    writeln!(w).ok();
+    writeln!(w, "| cloths | per update | per cloth |").ok();
+    writeln!(w, "|---|---|---|").ok();
+    for (count, t) in [(1, one_app), (config.many, many_app)] {
+        writeln!(
+            w,
+            "| {count} | {} | {} |",
+            t.cell(),
+            human(t.median / count as f64)
+        )
+        .ok();
+    }
+    writeln!(w).ok();
+    if let Some(single) = single {
+        writeln!(
+            w,
+            "{} cloths take {:.2}× the time of {} bare solver steps of one cloth ({} each): the \
+             systems run the cloths with `par_iter_mut` on the compute pool.",
+            config.many,
+            many_app.median / (config.many as f64 * single),
+            config.many,
+            human(single)
+        )
+        .ok();
+        writeln!(w).ok();
+        writeln!(
+            w,
+            "With one cloth, an update costs {} more than the bare step: the fixed cost of a \
+             frame (Bevy's schedules, the cloth systems, the divergence guard's backup and \
+             checks, the stats), paid once per update however many cloths there are.",
+            human((one_app.median - single).max(0.0))
+        )
+        .ok();
+        writeln!(w).ok();
+    }
+
+    writeln!(w, "## Sparse CG against its parts").ok();
+    writeln!(w).ok();
+    let parts = cg.spmv25.median + cg.assembly.median;
+    writeln!(
+        w,
+        "The assignment's cloth at {0}×{0} (stretch, shear and bending springs; `A` of order \
+         {1} with {2} stored nonzeros), one linearly implicit step with 25 CG iterations \
+         (tolerance 0, so all 25 run; {3} ran):",
+        cg.side, cg.dimension, cg.nonzeros, cg.iterations
+    )
+    .ok();
+    writeln!(w).ok();
+    writeln!(w, "| part | time |").ok();
+    writeln!(w, "|---|---|").ok();
+    writeln!(w, "| whole step (CG 25) | {} |", cg.step.cell()).ok();
+    writeln!(w, "| one assembly of `A`, `b` | {} |", cg.assembly.cell()).ok();
+    writeln!(w, "| 25 products `A·v` (faer) | {} |", cg.spmv25.cell()).ok();
+    writeln!(w, "| assembly + 25 products | {} |", human(parts)).ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "The step takes **{:.2}×** its assembly and 25 bare products (target: within 2×).",
+        cg.step.median / parts
+    )
+    .ok();
+    writeln!(w).ok();
+
+    writeln!(w, "## The limit").ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "One core, simple kernels: a triad `a = b + s·c` streams {:.1} GB/s from memory \
+         (3 × {} MiB), {:.1} GB/s from the last-level cache (3 × 2 MiB) and {:.1} GB/s from \
+         L1/L2 (3 × 16 KiB); multiply–adds in 8 independent chains run at {:.2} GFLOP/s \
+         scalar and {:.2} GFLOP/s in 4-lane `Vec4` (this CPU also has AVX-512, 4× wider, \
+         which a baseline x86-64 build does not use).",
+        limits.memory_gbs,
+        (4 * config.stream_len) >> 20,
+        limits.l3_gbs,
+        limits.cache_gbs,
+        limits.scalar_gflops,
+        limits.simd_gflops
+    )
+    .ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "Per step, a spring-loop method must at least move, per iteration, 40 B per spring \
+         (its record, coefficients and term), 20 B per incidence (an index and a term; two per \
+         spring) and 88 B per vertex, and do about 14 flops per spring, 3 per incidence and 21 \
+         per vertex. Its limit is the larger of bytes / bandwidth and flops / SIMD rate, with \
+         the bandwidth of where one iteration's working set fits (up to 512 KiB: L1/L2; up to \
+         the last-level cache's {} MiB: last-level cache; else memory); the table gives the limit as a fraction of \
+         the measured single-thread median (100 % would be at the limit).",
+        last_level_cache() >> 20
+    )
+    .ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "| method | size | bytes/step | flops/step | limit | measured | fraction of limit |"
+    )
+    .ok();
+    writeln!(w, "|---|---|---|---|---|---|---|").ok();
+    for c in &cases {
+        let model = scale_model(c.n);
+        if let Some((iterations, per_iteration, flops)) = work_per_iteration(&c.solver, &model) {
+            let (bytes, flops) = (
+                per_iteration * f64::from(iterations),
+                flops * f64::from(iterations),
+            );
+            let bandwidth = if per_iteration <= (512 << 10) as f64 {
+                limits.cache_gbs
+            } else if per_iteration <= last_level_cache() as f64 {
+                limits.l3_gbs
+            } else {
+                limits.memory_gbs
+            };
+            let limit = (bytes / (bandwidth * 1e9)).max(flops / (limits.simd_gflops * 1e9));
+            writeln!(
+                w,
+                "| {} | {}² | {:.2} MB | {:.2} Mflop | {} | {} | {:.0} % |",
+                c.method,
+                c.n,
+                bytes / 1e6,
+                flops / 1e6,
+                human(limit),
+                human(c.serial.median),
+                100.0 * limit / c.serial.median
+            )
+            .ok();
+        }
+    }
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "The sparse CG step's limit is its 25 products: each streams the {} nonzeros (8 B \
+         value + 8 B row index) = {:.1} MB, {:.2} ms at memory bandwidth for 25; measured \
+         {}: {:.0} % of the limit.",
+        cg.nonzeros,
+        16.0 * cg.nonzeros as f64 / 1e6,
+        25.0 * 16.0 * cg.nonzeros as f64 / (limits.memory_gbs * 1e9) * 1e3,
+        human(cg.step.median),
+        100.0 * 25.0 * 16.0 * cg.nonzeros as f64 / (limits.memory_gbs * 1e9) / cg.step.median
+    )
+    .ok();
+    writeln!(w).ok();
+
+    if let Some(path) = &config.silk_table {
+        writeln!(w, "## Side by side with bevy_silk").ok();
+        writeln!(w).ok();
+        match std::fs::read_to_string(path) {
+            Ok(table) => {
+                writeln!(
+                    w,
+                    "From `cargo run --release --manifest-path compare/silk/Cargo.toml` (a crate \
+                     outside the workspace, so bevy_silk's Bevy 0.17 stays out of our lock \
+                     file). Same cloth, same vertices and triangles, 32 iterations, one thread, \
+                     one process. bevy_silk's solver is Gauss–Seidel over a hash map of sticks; \
+                     ours is Jacobi (PBD) or Chebyshev-accelerated Jacobi (implicit)."
+                )
+                .ok();
+                writeln!(w).ok();
+                writeln!(w, "{}", table.trim()).ok();
+            }
+            Err(_) => {
+                writeln!(
+                    w,
+                    "Not run: {} is missing (run `bash scripts/perf.sh`).",
+                    path.display()
+                )
+                .ok();
+            }
+        }
+        writeln!(w).ok();
+    }
+
+    writeln!(w, "## Rerun").ok();
+    writeln!(w).ok();
+    writeln!(
+        w,
+        "`bash scripts/perf.sh` (about 15 minutes on this machine, the first time longer: it \
+         builds bevy_silk's Bevy) reruns the bevy_silk comparison and then this page; \
+         `cargo run --release --example perf` reruns this page alone. The criterion \
+         benchmarks (`cargo bench`) time the same steps at 21² and 101²."
+    )
+    .ok();
+
+    std::fs::write(config.out_dir.join("perf.md"), &md)?;
+    chart(&config.out_dir.join("perf-scaling.svg"), &cases).map_err(std::io::Error::other)?;
+    Ok(md)
+}
+
+fn chart(path: &Path, cases: &[Case]) -> Result<(), String> {
+    let point = |c: &Case| ((c.n * c.n) as f64, c.serial.median * 1e3);
+    let (x_lo, x_hi, y_lo, y_hi) = cases.iter().map(point).fold(
+        (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64),
+        |(x_lo, x_hi, y_lo, y_hi), (x, y)| (x_lo.min(x), x_hi.max(x), y_lo.min(y), y_hi.max(y)),
+    );
+    if cases.is_empty() {
+        return Ok(());
+    }
+    let methods = sweep_methods();
+    let series: Vec<(&str, Vec<(f64, f64)>)> = methods
+        .iter()
+        .map(|(name, _, _)| {
+            let points = cases.iter().filter(|c| c.method == *name).map(point);
+            (name.as_str(), points.collect::<Vec<_>>())
+        })
+        .filter(|(_, points)| !points.is_empty())
+        .collect();
+    crate::chart::log_log_chart(
+        path,
+        (900, 600),
+        "Time per step against vertex count (single thread, log–log)",
+        ("vertices", "ms per step"),
+        (x_lo / 1.3..x_hi * 1.3, y_lo / 2.0..y_hi * 2.0),
+        &series,
+        SeriesLabelPosition::UpperLeft,
+    )
+}

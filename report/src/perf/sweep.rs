@@ -1,0 +1,296 @@
+//! The scale sweep: every method from 21² to 256², many cloths in one app,
+//! and the sparse CG step against its parts.
+
+use std::time::{Duration, Instant};
+
+use bevy::app::App;
+use bevy::math::Affine3A;
+use bevy::prelude::{Fixed, MinimalPlugins, Time, Transform, Virtual};
+use bevy::time::TimeUpdateStrategy;
+use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
+use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
+use bevy_cloth::solver::guard::GuardBounds;
+use bevy_cloth::solver::implicit::ImplicitSolver;
+use bevy_cloth::solver::linear::{
+    self, CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
+};
+use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, SpringStiffness, StepParams};
+use faer::sparse::linalg::matmul::sparse_dense_matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+
+use super::*;
+
+/// The lab's cloth at `n×n` vertices, physically the same at every `n`
+/// (see the module docs).
+pub fn scale_model(n: usize) -> ClothModel {
+    ClothBuilder::lab_grid(n)
+        .with_total_mass(441.0)
+        .with_pins([0, n as u32 - 1])
+        .build()
+        .expect("the lab grid is a valid cloth")
+}
+
+/// The swinging state every timed step starts from: 20 Chebyshev steps.
+pub fn warm_state(model: &ClothModel, params: &StepParams) -> ClothState {
+    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+    let mut ws = AnyWorkspace::default();
+    let method = AnyMethod::Implicit(ImplicitSolver::chebyshev(LAB_ITERATIONS, LAB_RHO));
+    for _ in 0..20 {
+        method
+            .step(model, &mut state, params, &[], &mut ws)
+            .expect("the lab cloth steps");
+    }
+    state
+}
+
+/// The methods of the scale sweep: every preset, with its table name
+/// ([`crate::label`]) and whether it is sparse (a factorisation or sparse
+/// assembly per step: capped at [`PerfConfig::max_side_sparse`]).
+pub fn sweep_methods() -> Vec<(String, AnyMethod, bool)> {
+    PRESETS
+        .iter()
+        .map(|p| {
+            let sparse = matches!(p.method, AnyMethod::Linear(_) | AnyMethod::Exact(_));
+            (crate::label(&p.method), p.method, sparse)
+        })
+        .collect()
+}
+
+/// One timed case of the scale sweep.
+#[derive(Clone, Debug)]
+pub struct Case {
+    /// Table name of the method.
+    pub method: String,
+    /// The method and its settings.
+    pub solver: AnyMethod,
+    /// Grid side.
+    pub n: usize,
+    /// Single-thread time per step.
+    pub serial: Timing,
+    /// Time per step with the compute pool's threads, for methods with
+    /// parallel chunked loops at sizes where they engage.
+    pub parallel: Option<Timing>,
+    /// `None` if the guard's default check passes on the timed step, else
+    /// why it would have rejected it.
+    pub guard: Option<String>,
+}
+
+fn time_method(
+    config: &PerfConfig,
+    method: AnyMethod,
+    model: &ClothModel,
+    params: &StepParams,
+    start: &ClothState,
+) -> (Timing, Option<String>) {
+    let mut ws = AnyWorkspace::default();
+    let mut state = start.clone();
+    let mut failed = None;
+    let timing = time_samples(config.budget, config.min_samples, || {
+        state.copy_from(start);
+        let t = Instant::now();
+        let result = method.step(model, &mut state, params, &[], &mut ws);
+        let elapsed = t.elapsed().as_secs_f64();
+        if let Err(e) = result {
+            failed = Some(e.to_string());
+        }
+        elapsed
+    });
+    let guard = failed.or_else(|| {
+        GuardBounds::default()
+            .check(model, &state, start, params)
+            .err()
+            .map(|e| format!("{e:?}"))
+    });
+    (timing, guard)
+}
+
+/// Does `method` have loops that run in parallel chunks at this size?
+fn has_parallel_loops(method: &AnyMethod, model: &ClothModel) -> bool {
+    matches!(method, AnyMethod::Implicit(_) | AnyMethod::Symplectic(_))
+        && model.topology().springs().len() >= bevy_cloth::solver::PARALLEL_MIN
+}
+
+/// The scale sweep.
+pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
+    let params = StepParams::LAB;
+    let mut cases = Vec::new();
+    for &n in &config.sizes {
+        let model = scale_model(n);
+        let start = warm_state(&model, &params);
+        for (name, method, sparse) in sweep_methods() {
+            if sparse && n > config.max_side_sparse
+                || config
+                    .only
+                    .as_ref()
+                    .is_some_and(|only| !name.starts_with(only.as_str()))
+            {
+                continue;
+            }
+            progress(&format!("{name} at {n}²"));
+            let serial_params = StepParams {
+                parallel: false,
+                ..params
+            };
+            let (serial, guard) = time_method(config, method, &model, &serial_params, &start);
+            let parallel = has_parallel_loops(&method, &model)
+                .then(|| time_method(config, method, &model, &params, &start).0);
+            cases.push(Case {
+                method: name,
+                solver: method,
+                n,
+                serial,
+                parallel,
+                guard,
+            });
+        }
+    }
+    cases
+}
+
+/// Time per `App::update` (one fixed step of every cloth) with `cloths` lab
+/// cloths (21², Chebyshev 32) under `MinimalPlugins` and the cloth plugins.
+/// Bevy's task pools are set up once per process: after [`run`] has made
+/// the compute pool, the app uses that one.
+pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
+    use bevy_cloth::{Cloth, ClothParams};
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, bevy_cloth::ClothPlugins::default()))
+        .insert_resource(Time::<Fixed>::from_seconds(0.0333))
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    let model = ClothBuilder::lab().build().expect("the lab cloth");
+    for c in 0..cloths {
+        app.world_mut().spawn((
+            Cloth::new(model.clone()),
+            ClothParams::default(),
+            ImplicitSolver::chebyshev(32, 0.995),
+            Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
+        ));
+    }
+    app.world_mut()
+        .resource_mut::<Time<Virtual>>()
+        .set_max_delta(Duration::from_secs_f64(0.25));
+    app.finish();
+    app.cleanup();
+    for _ in 0..21 {
+        app.update();
+    }
+    time_runs(config.budget, config.min_samples, || app.update())
+}
+
+/// At 21²: the time of 32 spring passes alone and of a whole Chebyshev 32
+/// step (seconds), or `None` when 21 is not among the sizes.
+pub(super) fn spring_pass_share(config: &PerfConfig) -> Option<(f64, f64)> {
+    if !config.sizes.contains(&21) {
+        return None;
+    }
+    let params = StepParams::LAB;
+    let model = scale_model(21);
+    let start = warm_state(&model, &params);
+    let mut coeffs = Vec::new();
+    bevy_cloth::solver::kernels::stiffness_coeffs(&model, &params.stiffness, &mut coeffs);
+    let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
+    let springs = time_runs(config.budget, config.min_samples, || {
+        for _ in 0..32 {
+            bevy_cloth::solver::kernels::spring_terms(
+                true,
+                &model,
+                &start.positions,
+                &coeffs,
+                &mut terms,
+            );
+            std::hint::black_box(&mut terms);
+        }
+    });
+    let method = AnyMethod::Implicit(ImplicitSolver::chebyshev(LAB_ITERATIONS, LAB_RHO));
+    let (step, _) = time_method(config, method, &model, &params, &start);
+    Some((springs.median, step.median))
+}
+
+/// The sparse CG step against its parts, on the assignment's cloth.
+#[derive(Clone, Debug)]
+pub struct CgParts {
+    /// Side of the cloth.
+    pub side: usize,
+    /// Order of `A` and its stored nonzeros.
+    pub dimension: usize,
+    /// Stored nonzeros of `A`.
+    pub nonzeros: usize,
+    /// One whole linearly implicit step with 25 CG iterations.
+    pub step: Timing,
+    /// One assembly of `A` and `b`.
+    pub assembly: Timing,
+    /// 25 sparse matrix–vector products `A·v` (faer, as CG calls it).
+    pub spmv25: Timing,
+    /// CG iterations the timed step ran.
+    pub iterations: u32,
+}
+
+/// Times [`CgParts`].
+pub fn cg_parts(config: &PerfConfig) -> CgParts {
+    let n = config.cg_side;
+    let params = StepParams {
+        dt: 5e-3,
+        stiffness: SpringStiffness::uniform(10.0),
+        damping: 1.0,
+        ..StepParams::LAB
+    };
+    let model = ClothBuilder::assignment(n, n)
+        .build()
+        .expect("the assignment cloth");
+    let cg = LinearImplicitSolver::cg(CgConfig {
+        tolerance: 0.0,
+        ..CgConfig::ASSIGNMENT
+    })
+    .with_springs(SpringJacobian::ClampCompression);
+    let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let mut ws = LinearWorkspace::default();
+    for _ in 0..20 {
+        linear::step(&model, &mut start, &params, &cg, &[], &mut ws).expect("valid step");
+    }
+    let mut state = start.clone();
+    let mut iterations = 0;
+    let step = time_samples(config.budget, config.min_samples, || {
+        state.copy_from(&start);
+        let t = Instant::now();
+        let report = linear::step(&model, &mut state, &params, &cg, &[], &mut ws);
+        let elapsed = t.elapsed().as_secs_f64();
+        iterations = report.expect("valid step").iterations;
+        elapsed
+    });
+    let mut system = LinearSystem::new(&model);
+    let assembly = time_runs(config.budget, config.min_samples, || {
+        system.assemble(
+            &model,
+            &start.positions,
+            &start.velocities,
+            &params,
+            &cg,
+            &[],
+        )
+    });
+    let dim = system.dimension();
+    let mut v: Vec<f64> = (0..dim).map(|i| 1.0 + (i % 7) as f64 * 0.1).collect();
+    let mut out = vec![0.0; dim];
+    let spmv25 = time_runs(config.budget, config.min_samples, || {
+        for _ in 0..25 {
+            sparse_dense_matmul(
+                MatMut::from_column_major_slice_mut(&mut out, dim, 1),
+                Accum::Replace,
+                system.matrix(),
+                MatRef::from_column_major_slice(&v, dim, 1),
+                1.0,
+                Par::Seq,
+            );
+            std::mem::swap(&mut v, &mut out);
+        }
+    });
+    CgParts {
+        side: n,
+        dimension: dim,
+        nonzeros: system.nonzeros(),
+        step,
+        assembly,
+        spmv25,
+        iterations,
+    }
+}

@@ -1,0 +1,180 @@
+//! The hot loops the spring-based methods share: the packed-SIMD spring
+//! pass and the fixed-chunk (optionally parallel) loops.
+
+use bevy::math::{Mat4, Vec3A, Vec4};
+
+use super::SpringStiffness;
+use crate::model::{ClothModel, Spring};
+
+/// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
+/// reductions over chunks give the same bits whatever the thread count.
+pub(crate) const CHUNK: usize = 4096;
+
+/// Below this many elements the chunked loops run serially: a task per
+/// chunk costs more than it saves.
+pub const PARALLEL_MIN: usize = 32_768;
+
+fn parallel_pool(parallel: bool, len: usize) -> Option<&'static bevy::tasks::ComputeTaskPool> {
+    if parallel && len >= PARALLEL_MIN {
+        bevy::tasks::ComputeTaskPool::try_get().filter(|p| p.thread_num() > 1)
+    } else {
+        None
+    }
+}
+
+/// Runs `f(start, chunk)` over `CHUNK`-sized chunks of `data`, on Bevy's
+/// `ComputeTaskPool` when `parallel` is set (from
+/// [`StepParams::parallel`](super::StepParams::parallel)), `data` has at
+/// least [`PARALLEL_MIN`] elements and
+/// the pool (set up by Bevy's `TaskPoolPlugin`) has more than one thread,
+/// else serially. The chunks are the same either way, and each element is
+/// written by exactly one call, so the result is bitwise the same.
+pub(crate) fn for_chunks<T: Send>(
+    parallel: bool,
+    data: &mut [T],
+    f: impl Fn(usize, &mut [T]) + Send + Sync,
+) {
+    match parallel_pool(parallel, data.len()) {
+        Some(pool) => {
+            let f = &f;
+            pool.scope(|scope| {
+                for (i, chunk) in data.chunks_mut(CHUNK).enumerate() {
+                    scope.spawn(async move { f(i * CHUNK, chunk) });
+                }
+            });
+        }
+        None => {
+            for (i, chunk) in data.chunks_mut(CHUNK).enumerate() {
+                f(i * CHUNK, chunk);
+            }
+        }
+    }
+}
+
+/// [`for_chunks`] over two slices of the same length, chunked alike;
+/// `f(start, a, b)` returns a value per chunk, written to `results[chunk]`
+/// (so reductions can add them in chunk order).
+pub(crate) fn for_chunks2<A: Send, B: Send, R: Send + Copy + Default>(
+    parallel: bool,
+    a: &mut [A],
+    b: &mut [B],
+    results: &mut Vec<R>,
+    f: impl Fn(usize, &mut [A], &mut [B]) -> R + Send + Sync,
+) {
+    let chunks = a.len().div_ceil(CHUNK);
+    results.clear();
+    results.resize(chunks, R::default());
+    let pool = parallel_pool(parallel, a.len());
+    let work = a
+        .chunks_mut(CHUNK)
+        .zip(b.chunks_mut(CHUNK))
+        .zip(results.iter_mut())
+        .enumerate();
+    match pool {
+        Some(pool) => {
+            let f = &f;
+            pool.scope(|scope| {
+                for (i, ((a, b), r)) in work {
+                    scope.spawn(async move {
+                        *r = f(i * CHUNK, a, b);
+                    });
+                }
+            });
+        }
+        None => {
+            for (i, ((a, b), r)) in work {
+                *r = f(i * CHUNK, a, b);
+            }
+        }
+    }
+}
+
+/// For every spring `e = (a, b)` of `springs`, with `d = x_a − x_b` and
+/// `l = ‖d‖`: calls `emit(e, d, α_e − β_e/l)` (`0` for a spring of zero
+/// length, whose direction is undefined), with `[α_e, β_e] = coeffs[e]`.
+///
+/// Both spring-based pipelines have this form: the implicit gradient term is
+/// `d·k(1 − L/l)` (`α = k`, `β = kL`), and PBD's half correction is
+/// `d·L/(2l)` (`α = 0`, `β = −L/2`). `e` counts from 0 within `springs`.
+///
+/// Four springs at a time: their four `d` are transposed in registers
+/// (glam's `Mat4`) into `x`, `y` and `z` lanes, so the squared lengths, the
+/// square roots and the divisions are one packed SIMD instruction each for
+/// the four (glam's `Vec4`: SSE2 on x86-64, NEON on aarch64). Per spring,
+/// a horizontal dot product and a scalar `sqrtss` + `divss` bounded the
+/// loop before; on the lab cloth this halves the spring pass (see
+/// `docs/perf.md`).
+#[inline]
+pub(crate) fn spring_scales(
+    springs: &[Spring],
+    coeffs: &[[f32; 2]],
+    x: &[Vec3A],
+    mut emit: impl FnMut(usize, Vec3A, f32),
+) {
+    let groups = springs.chunks_exact(4).zip(coeffs.chunks_exact(4));
+    let done = springs.len() / 4 * 4;
+    for (g, (s, c)) in groups.enumerate() {
+        let d = [
+            x[s[0].a as usize] - x[s[0].b as usize],
+            x[s[1].a as usize] - x[s[1].b as usize],
+            x[s[2].a as usize] - x[s[2].b as usize],
+            x[s[3].a as usize] - x[s[3].b as usize],
+        ];
+        let lanes = Mat4::from_cols(
+            d[0].extend(0.0),
+            d[1].extend(0.0),
+            d[2].extend(0.0),
+            d[3].extend(0.0),
+        )
+        .transpose();
+        let l2 =
+            lanes.x_axis * lanes.x_axis + lanes.y_axis * lanes.y_axis + lanes.z_axis * lanes.z_axis;
+        let alpha = Vec4::new(c[0][0], c[1][0], c[2][0], c[3][0]);
+        let beta = Vec4::new(c[0][1], c[1][1], c[2][1], c[3][1]);
+        let scale = Vec4::select(l2.cmpgt(Vec4::ZERO), alpha - beta / l2.sqrt(), Vec4::ZERO);
+        emit(4 * g, d[0], scale.x);
+        emit(4 * g + 1, d[1], scale.y);
+        emit(4 * g + 2, d[2], scale.z);
+        emit(4 * g + 3, d[3], scale.w);
+    }
+    for (j, (s, [alpha, beta])) in springs[done..].iter().zip(&coeffs[done..]).enumerate() {
+        let d = x[s.a as usize] - x[s.b as usize];
+        let l2 = d.length_squared();
+        let scale = if l2 > 0.0 {
+            alpha - beta / l2.sqrt()
+        } else {
+            0.0
+        };
+        emit(done + j, d, scale);
+    }
+}
+
+/// Per spring `[k, kL]`, the coefficients of the implicit gradient term
+/// `d·k(1 − L/l)` for [`spring_scales`].
+pub fn stiffness_coeffs(model: &ClothModel, stiffness: &SpringStiffness, out: &mut Vec<[f32; 2]>) {
+    let k = stiffness.as_array();
+    out.clear();
+    out.extend(model.topology().springs().iter().map(|s| {
+        let k = k[s.kind as usize];
+        [k, k * s.rest_length]
+    }));
+}
+
+/// Fills `terms[e]` with each spring's gradient term `k(1 − L/l)(x_a − x_b)`
+/// at positions `x`, in parallel chunks for large cloths. `coeffs` is from
+/// [`stiffness_coeffs`].
+pub fn spring_terms(
+    parallel: bool,
+    model: &ClothModel,
+    x: &[Vec3A],
+    coeffs: &[[f32; 2]],
+    terms: &mut [Vec3A],
+) {
+    let springs = model.topology().springs();
+    for_chunks(parallel, terms, |start, terms| {
+        let end = start + terms.len();
+        spring_scales(&springs[start..end], &coeffs[start..end], x, |e, d, s| {
+            terms[e] = d * s;
+        });
+    });
+}

@@ -1,0 +1,122 @@
+//! Measures of a state: the implicit-Euler objective and its gradient,
+//! energy, stretch, and the per-step error against a reference.
+
+use bevy::math::Vec3A;
+
+use super::kernels::{for_chunks, spring_terms, stiffness_coeffs};
+use super::{SpringStiffness, StepParams};
+use crate::model::{ClothModel, ClothState};
+
+/// The gradient of the implicit-Euler objective (the lab's equation 1),
+/// `g = M(x − x̃)/dt² − f(x)` with spring and gravity forces, into `out`.
+/// Pinned vertices get zero. `terms` is scratch of one entry per spring.
+/// Large cloths are done in parallel chunks (see [`PARALLEL_MIN`](super::PARALLEL_MIN)), with
+/// bitwise the same result.
+pub fn gradient(
+    model: &ClothModel,
+    x: &[Vec3A],
+    x_tilde: &[Vec3A],
+    params: &StepParams,
+    terms: &mut [Vec3A],
+    out: &mut [Vec3A],
+) {
+    let mut coeffs = Vec::new();
+    stiffness_coeffs(model, &params.stiffness, &mut coeffs);
+    spring_terms(params.parallel, model, x, &coeffs, terms);
+    let terms = &*terms;
+    let dt = params.dt as f32;
+    let inv_dt2 = 1.0 / (dt * dt);
+    let gravity = Vec3A::from(params.gravity);
+    let adjacency = model.topology().adjacency();
+    let masses = model.masses();
+    let pinned = model.pinned();
+    for_chunks(params.parallel, out, |start, out| {
+        for (j, g) in out.iter_mut().enumerate() {
+            let i = start + j;
+            if pinned[i] {
+                *g = Vec3A::ZERO;
+                continue;
+            }
+            let m = masses[i];
+            let mut acc = (x[i] - x_tilde[i]) * (m * inv_dt2) - gravity * m;
+            for inc in adjacency.of(i) {
+                acc += terms[inc.spring as usize] * inc.sign;
+            }
+            *g = acc;
+        }
+    });
+}
+
+/// The implicit-Euler objective whose minimiser is the next position:
+/// `Σ m/(2dt²)‖x − x̃‖² + Σ_springs ½k(l − L)² − Σ m g·x`, in `f64`.
+/// Its gradient is [`gradient`].
+pub fn objective(model: &ClothModel, x: &[Vec3A], x_tilde: &[Vec3A], params: &StepParams) -> f64 {
+    let inv_dt2 = 1.0 / (params.dt * params.dt);
+    let mut e = 0.0;
+    for (i, &m) in model.masses().iter().enumerate() {
+        let m = f64::from(m);
+        let d = x[i].as_dvec3() - x_tilde[i].as_dvec3();
+        e += 0.5 * m * inv_dt2 * d.length_squared()
+            - m * params.gravity.as_dvec3().dot(x[i].as_dvec3());
+    }
+    e + spring_energy(model, x, &params.stiffness)
+}
+
+fn spring_energy(model: &ClothModel, x: &[Vec3A], stiffness: &SpringStiffness) -> f64 {
+    model
+        .topology()
+        .springs()
+        .iter()
+        .map(|s| {
+            let l = (x[s.a as usize].as_dvec3() - x[s.b as usize].as_dvec3()).length();
+            let stretch = l - f64::from(s.rest_length);
+            0.5 * f64::from(stiffness.of(s.kind)) * stretch * stretch
+        })
+        .sum()
+}
+
+/// Total mechanical energy (kinetic + spring + gravitational, with `y = 0`
+/// as zero height along gravity), in `f64`.
+pub fn energy(model: &ClothModel, state: &ClothState, params: &StepParams) -> f64 {
+    let g = params.gravity.as_dvec3();
+    let mut e = 0.0;
+    for (i, &m) in model.masses().iter().enumerate() {
+        let m = f64::from(m);
+        e += 0.5 * m * state.velocities[i].as_dvec3().length_squared()
+            - m * g.dot(state.positions[i].as_dvec3());
+    }
+    e + spring_energy(model, &state.positions, &params.stiffness)
+}
+
+/// The per-step error of a method against the exact step from the same
+/// state: `‖x_K − x*‖ / ‖x* − x_0‖`, with `x_K` the method's positions,
+/// `x*` the exact step's and `x_0` the positions before the step (norms over
+/// all vertices, in `f64`). 0 is exact; 1 means the method moved no closer
+/// to `x*` than staying put.
+pub fn step_error(method: &[Vec3A], exact: &[Vec3A], before: &[Vec3A]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((m, e), b) in method.iter().zip(exact).zip(before) {
+        num += (m.as_dvec3() - e.as_dvec3()).length_squared();
+        den += (e.as_dvec3() - b.as_dvec3()).length_squared();
+    }
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else {
+        num.sqrt()
+    }
+}
+
+/// Largest relative elongation `(l − L)/L` over all springs (0 at rest, 0.1
+/// when some spring is 10 % longer than at rest). NaN if a position is.
+pub fn max_stretch(model: &ClothModel, x: &[Vec3A]) -> f32 {
+    let mut worst = f32::NEG_INFINITY;
+    for s in model.topology().springs() {
+        let l = x[s.a as usize].distance(x[s.b as usize]);
+        let r = (l - s.rest_length) / s.rest_length;
+        if r.is_nan() {
+            return f32::NAN;
+        }
+        worst = worst.max(r);
+    }
+    worst
+}

@@ -1,0 +1,61 @@
+//! What every method is: a settings type implementing [`Method`].
+//!
+//! A method's settings *are* its type: [`ImplicitSolver`](super::implicit::ImplicitSolver),
+//! [`PbdSolver`](super::pbd::PbdSolver), … Each implements [`Method`] once,
+//! in its own file, and the crate's method table
+//! ([`methods`](crate::methods)) turns each into an ECS component, a plugin,
+//! a variant of [`AnyMethod`](crate::methods::AnyMethod) and named presets.
+
+use core::fmt::Debug;
+
+use super::{ParamError, StepError, StepParams, StepReport};
+use crate::collision::PenaltySphere;
+use crate::model::{ClothModel, ClothState};
+
+/// The lab's iteration count (32) for the iterative methods' interactive
+/// presets and defaults.
+pub const LAB_ITERATIONS: u32 = 32;
+
+/// The lab's Chebyshev spectral radius, `ρ = 0.995`.
+pub const LAB_RHO: f32 = 0.995;
+
+/// A simulation method: settings that advance a [`ClothState`] by one step
+/// with a reusable workspace. Pure numerics, no ECS.
+pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
+    /// Scratch buffers reused from step to step (allocated on the first
+    /// step, so a cloth allocates only what its method needs).
+    type Workspace: Default + Send + Sync + 'static;
+
+    /// The name of this configuration, the one used everywhere (panel,
+    /// [`ClothStats`](crate::ClothStats), messages, report, perf page,
+    /// command lines): lower case, words joined by `-`, e.g. `chebyshev`
+    /// or `linear-cg`.
+    fn name(&self) -> &'static str;
+
+    /// Iterations per step of an iterative method (`None` for a direct one).
+    fn iterations(&self) -> Option<u32> {
+        None
+    }
+
+    /// The same method with another iteration count (unchanged for a
+    /// method without iterations).
+    #[must_use]
+    fn with_iterations(self, iterations: u32) -> Self {
+        let _ = iterations;
+        self
+    }
+
+    /// Checks the settings.
+    fn validate(&self) -> Result<(), ParamError>;
+
+    /// Advances `state` by one step, with penalty `spheres` acting inside it.
+    /// On error the state is unchanged.
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut Self::Workspace,
+    ) -> Result<StepReport, StepError>;
+}

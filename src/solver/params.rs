@@ -1,0 +1,197 @@
+//! The parameters of a step, what a step reports, and why it can fail.
+
+use bevy::math::Vec3;
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
+use thiserror::Error;
+
+use crate::model::{ClothModel, ClothState, SpringKind};
+
+/// Stiffness of each [`SpringKind`].
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Debug, PartialEq, Default)]
+pub struct SpringStiffness {
+    /// Stiffness of stretch springs (triangle edges).
+    pub stretch: f32,
+    /// Stiffness of shear (diagonal) springs.
+    pub shear: f32,
+    /// Stiffness of bending (skip-one) springs.
+    pub bend: f32,
+}
+
+impl SpringStiffness {
+    /// The same stiffness for every kind.
+    pub const fn uniform(k: f32) -> Self {
+        Self {
+            stretch: k,
+            shear: k,
+            bend: k,
+        }
+    }
+
+    /// The stiffness of one kind.
+    #[inline]
+    pub fn of(&self, kind: SpringKind) -> f32 {
+        match kind {
+            SpringKind::Stretch => self.stretch,
+            SpringKind::Shear => self.shear,
+            SpringKind::Bend => self.bend,
+        }
+    }
+
+    /// Per-kind values as an array indexed by `SpringKind as usize`.
+    #[inline]
+    pub fn as_array(&self) -> [f32; 3] {
+        [self.stretch, self.shear, self.bend]
+    }
+}
+
+impl Default for SpringStiffness {
+    /// The lab's `k = 8000` for every kind.
+    fn default() -> Self {
+        Self::uniform(8000.0)
+    }
+}
+
+/// Physical parameters of one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepParams {
+    /// Time step in seconds (`f64`, as `Time` keeps it: the assembled
+    /// systems use it exactly; the `f32` loops round it once).
+    pub dt: f64,
+    /// Spring stiffness per kind.
+    pub stiffness: SpringStiffness,
+    /// Velocity multiplier applied at the start of each step (the lab: 0.99).
+    pub damping: f32,
+    /// Gravitational acceleration.
+    pub gravity: Vec3,
+    /// Whether a large cloth (at least [`PARALLEL_MIN`](super::PARALLEL_MIN)
+    /// springs or vertices) may split its loops over Bevy's compute pool.
+    /// Results are bitwise the same either way; this only trades speed for
+    /// threads (default `true`).
+    pub parallel: bool,
+}
+
+impl StepParams {
+    /// The lab's parameters: `dt = 0.0333`, `k = 8000`, damping 0.99,
+    /// gravity `(0, −9.8, 0)`.
+    pub const LAB: Self = Self {
+        dt: 0.0333,
+        stiffness: SpringStiffness::uniform(8000.0),
+        damping: 0.99,
+        gravity: Vec3::new(0.0, -9.8, 0.0),
+        parallel: true,
+    };
+
+    /// Checks every parameter; a solver calls this before it touches state.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if !(self.dt.is_finite() && self.dt > 0.0 && (self.dt as f32) > 0.0) {
+            return Err(ParamError::TimeStep(self.dt));
+        }
+        for k in self.stiffness.as_array() {
+            if !(k.is_finite() && k > 0.0) {
+                return Err(ParamError::Stiffness(k));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.damping) {
+            return Err(ParamError::Damping(self.damping));
+        }
+        if !self.gravity.is_finite() {
+            return Err(ParamError::Gravity);
+        }
+        Ok(())
+    }
+}
+
+impl Default for StepParams {
+    fn default() -> Self {
+        Self::LAB
+    }
+}
+
+/// Why a step was refused. The state is left untouched.
+#[derive(Error, Debug, Clone, Copy, PartialEq)]
+pub enum StepError {
+    /// A parameter is invalid.
+    #[error(transparent)]
+    Params(#[from] ParamError),
+    /// The linear solve failed; see [`SolveError`].
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// The state does not have one position and velocity per vertex.
+    #[error("state has {got} vertices, the model {expected}")]
+    StateMismatch {
+        /// Vertices in the model.
+        expected: usize,
+        /// Positions or velocities in the state.
+        got: usize,
+    },
+}
+
+/// Why a linear solve failed. The state is left untouched.
+#[derive(Error, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveError {
+    /// Conjugate gradients met a direction of non-positive curvature: `A` is
+    /// not positive definite (compressed springs under the exact spring
+    /// Jacobian, or an exact penalty Jacobian).
+    #[error("the system matrix is not positive definite")]
+    NotPositiveDefinite,
+    /// The sparse factorisation failed or produced a non-finite solution.
+    #[error("the sparse factorisation failed")]
+    Factorization,
+}
+
+/// What a step reports about its solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepReport {
+    /// Iterations performed.
+    pub iterations: u32,
+    /// The method's own convergence measure, if it has one: the Euclidean
+    /// norm of the objective's gradient over free vertices for the implicit
+    /// solver.
+    pub residual: Option<f32>,
+}
+
+/// Checks that `state` has one position and velocity per vertex of `model`.
+pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), StepError> {
+    let expected = model.vertex_count();
+    for got in [state.positions.len(), state.velocities.len()] {
+        if got != expected {
+            return Err(StepError::StateMismatch { expected, got });
+        }
+    }
+    Ok(())
+}
+
+/// Why simulation parameters are invalid.
+///
+/// Returned by [`StepParams::validate`](crate::solver::StepParams::validate)
+/// and by every solver's step. Inside a running app the cloth is skipped and a
+/// warning is logged until the parameters are fixed.
+#[derive(Error, Debug, Clone, Copy, PartialEq)]
+pub enum ParamError {
+    /// The time step is zero, negative or not finite.
+    #[error("time step {0} must be finite and positive")]
+    TimeStep(f64),
+    /// A spring stiffness is zero, negative or not finite.
+    #[error("stiffness {0} must be finite and positive")]
+    Stiffness(f32),
+    /// Damping must lie in `[0, 1]` (it multiplies the velocity each step).
+    #[error("damping {0} must lie in [0, 1]")]
+    Damping(f32),
+    /// Gravity has a non-finite component.
+    #[error("gravity must be finite")]
+    Gravity,
+    /// A solver was asked for zero iterations.
+    #[error("a solver needs at least one iteration")]
+    Iterations,
+    /// Chebyshev's spectral radius estimate must lie in `(0, 1)`.
+    #[error("Chebyshev rho {0} must lie in (0, 1)")]
+    Rho(f32),
+    /// A solver tolerance is negative or not finite.
+    #[error("tolerance {0} must be finite and non-negative")]
+    Tolerance(f64),
+    /// A divergence-guard bound is NaN, or a stretch bound is not positive.
+    #[error("guard bound {0} must be a positive number")]
+    Bound(f64),
+}
