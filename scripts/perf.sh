@@ -6,4 +6,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo run --release --manifest-path compare/silk/Cargo.toml -- --out docs/perf/silk.md
-cargo run --release --example perf -- --out docs
+cargo run --release -p bevy_cloth_report -- --perf --out docs

@@ -25,14 +25,16 @@
 //!
 //! | Feature | Description | Default feature |
 //! |---|---|---|
-//! | `render` | [`render`]: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame; `DragPlugin` drags entities with the mouse (Bevy picking). Turns on Bevy's windowing, rendering, PBR and picking features (X11 only: no system `-dev` packages). | Yes |
-//! | `egui` | [`ui`]: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | Yes |
-//! | `report` | [`report`]: the error-against-run-time report (SVG charts with `plotters`, progress with `indicatif`). | Yes |
-//! | `examples` | What the windowed examples need beyond the library (`bevy_panorbit_camera`). | Yes |
+//! | `render` | `render`: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame. Needs Bevy's `bevy_mesh` and `bevy_camera` only (no renderer or window: the game brings its own). | Yes |
+//! | `picking` | `drag`: `DragPlugin` drags entities with the mouse (Bevy's picking). | No |
+//! | `egui` | `ui`: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | No |
 //!
-//! With `default-features = false` the crate builds only the simulation: Bevy's
-//! `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and `bevy_mesh` features,
-//! and `faer` (sparse linear algebra, without its rayon thread pool).
+//! With default features a game builds the simulation and the mesh
+//! write-back only. With `default-features = false` the crate builds only the
+//! simulation: Bevy's `std`, `multi_threaded`, `bevy_log`, `bevy_asset` and
+//! `bevy_mesh` features, and `faer` (sparse linear algebra, without its rayon
+//! thread pool). The report, the stability map and the performance page are
+//! a separate crate of the workspace (`bevy_cloth_report`).
 //!
 //! ## Add the Plugins
 //!
@@ -63,9 +65,16 @@
 //! ## Cloths
 //! - [`ClothBuilder`](model::ClothBuilder): the lab's grid, any triangle list, a Bevy `Mesh`
 //! - [`Cloth`], [`ClothParams`], [`ClothStats`]
-//! - Errors: [`ClothBuildError`](model::ClothBuildError), [`ParamError`](model::ParamError)
+//! - Errors: [`ClothBuildError`](model::ClothBuildError), [`ParamError`](solver::ParamError)
 //!
 //! ## Methods
+//!
+//! A method is a settings type implementing [`solver::Method`], in its own
+//! solver file; the method table ([`methods`]) makes each a component, a
+//! plugin and a variant of [`AnyMethod`], and [`PRESETS`] names each
+//! method's interactive settings once (`jacobi`, `chebyshev`, `pbd`, …: the
+//! names the panel, `--method`, [`ClothStats::method`], the report and the
+//! perf page use).
 //!
 //! | Component / plugin | Method | Spec | Solver |
 //! |---|---|---|---|
@@ -98,15 +107,16 @@
 //! printed entry to its four decimals.
 //!
 //! ## Rendering and UI (optional)
-//! - `render::ClothRenderPlugin`, `render::cloth_mesh`, `render::DragPlugin`
-//!   (feature `render`)
+//! - `render::ClothRenderPlugin`, `render::cloth_mesh` (feature `render`)
+//! - `drag::DragPlugin` (feature `picking`)
 //! - `ui::ClothInspectorPlugin` (feature `egui`)
 //!
 //! ## Stability
 //! - [`ClothGuard`]: the divergence guard's bounds and policy per cloth
 //!   ([`solver::guard`]); [`ClothDiverged`] reports what it did.
-//! - [`stability`]: stiff and extreme scenarios classified against the exact
-//!   method, and symplectic Euler's step limit `2/ω_max`.
+//! - The stability map (crate `bevy_cloth_report`): stiff and extreme
+//!   scenarios classified against the exact method, and symplectic Euler's
+//!   step limit `2/ω_max`.
 //!
 //! ## Performance
 //! - Every iteration of the spring-based methods is two passes: one over
@@ -120,8 +130,8 @@
 //!   (`par_iter_mut`); a large cloth (at least [`solver::PARALLEL_MIN`]
 //!   springs or vertices) splits its loops in fixed chunks on the same pool
 //!   when it has more than one thread. Results are bitwise the same either
-//!   way ([`solver::set_parallel`] turns it off).
-//! - `report::perf` (feature `report`) and `--example perf` write
+//!   way ([`ClothParams::parallel`] turns it off for a cloth).
+//! - `cargo run --release -p bevy_cloth_report -- --perf` writes
 //!   `docs/perf.md`: every method from 21² to 256² vertices, 100 cloths in
 //!   one app, sparse CG against its parts, the machine's limits, and the
 //!   bevy_silk comparison.
@@ -137,9 +147,12 @@
 //!
 //! - [`model`]: pure data. Topology (springs, vertex→spring adjacency),
 //!   masses, pins, state. No systems.
-//! - [`solver`] and [`collision`]: pure numerics, one entry point per method,
-//!   taking a model, a state, parameters and a reusable workspace. No
-//!   entities, no `Time`, no `Transform`: testable and benchmarkable alone.
+//! - [`solver`] and [`collision`]: pure numerics, one file per method, each
+//!   a settings type implementing [`solver::Method`]: a step takes a model, a
+//!   state, parameters and a reusable workspace. No entities, no `Time`, no
+//!   `Transform`: testable and benchmarkable alone.
+//! - [`methods`]: the method table, where each method becomes a component,
+//!   a plugin and an [`AnyMethod`] variant, and [`PRESETS`].
 //! - [`ecs`]: thin glue. Components, system sets and plugins that copy the
 //!   time step and transforms in, call a solver, and publish statistics.
 //!

@@ -11,8 +11,8 @@ use crate::solver::{SpringStiffness, StepParams};
 /// A simulated cloth: its model (topology, masses, pins) and its state
 /// (world-space positions and velocities).
 ///
-/// Spawn it with a method component ([`ImplicitSolver`](super::ImplicitSolver),
-/// [`PbdSolver`](super::PbdSolver)) and a [`Transform`]: on its first step the
+/// Spawn it with a method component ([`ImplicitSolver`](crate::ImplicitSolver),
+/// [`PbdSolver`](crate::PbdSolver)) and a [`Transform`]: on its first step the
 /// rest shape is placed by the entity's global transform, and from then on
 /// the pinned vertices follow that transform while the others are simulated
 /// in world space. [`ClothParams`] and [`ClothStats`] are added automatically.

@@ -150,7 +150,7 @@ pub(crate) fn spring_scales(
 }
 
 /// Per spring `[k, kL]`, the coefficients of the implicit gradient term
-/// `d·k(1 − L/l)` for [`spring_scales`].
+/// `d·k(1 − L/l)` for the spring pass.
 pub fn stiffness_coeffs(model: &ClothModel, stiffness: &SpringStiffness, out: &mut Vec<[f32; 2]>) {
     let k = stiffness.as_array();
     out.clear();

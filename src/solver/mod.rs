@@ -1,7 +1,7 @@
 //! Pure numerics: one file per method, one entry point each. No ECS types.
 //!
-//! Every method advances a [`ClothState`] by one time step of a
-//! [`ClothModel`] under [`StepParams`], using a method-specific workspace that
+//! Every method advances a [`ClothState`](crate::model::ClothState) by one time step of a
+//! [`ClothModel`](crate::model::ClothModel) under [`StepParams`], using a method-specific workspace that
 //! is allocated on the first step and reused afterwards (no allocation per
 //! step once the sizes are known).
 //!

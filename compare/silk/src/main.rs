@@ -27,7 +27,7 @@ use bevy::math::Affine3A;
 use bevy_017::math::{Mat4, Vec3 as Vec3Silk};
 use bevy_017::platform::collections::HashMap;
 use bevy_cloth::model::{ClothModel, ClothState};
-use bevy_cloth::report::perf::{Timing, scale_model, time_samples};
+use bevy_cloth_report::perf::{Timing, scale_model, time_samples};
 use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
 use bevy_cloth::solver::pbd::{self, PbdSolver, PbdWorkspace};
 use bevy_cloth::solver::{StepParams, max_stretch};

@@ -4,7 +4,7 @@
 //! `perf-scaling.svg`.
 //!
 //! ```text
-//! cargo run --release --example perf            # docs/perf.md
+//! cargo run --release -p bevy_cloth_report -- --perf   # docs/perf.md
 //! bash scripts/perf.sh                          # the bevy_silk table too, then the page
 //! ```
 //!
@@ -22,7 +22,7 @@
 //! the same work. A case is warmed up, then sampled until it has run for
 //! its time budget (at least [`PerfConfig::min_samples`] samples); the page
 //! gives the median and the quartiles. After the last sample the
-//! divergence guard's default check ([`GuardBounds::default`]) runs on the
+//! divergence guard's default check ([`GuardBounds::default`](bevy_cloth::solver::guard::GuardBounds::default)) runs on the
 //! result: a timed step the guard would have rejected is marked.
 
 mod machine;

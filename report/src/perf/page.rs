@@ -48,7 +48,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     writeln!(
         w,
-        "Written by `cargo run --release --example perf` ({}). Machine: {}, {} logical cores; \
+        "Written by `cargo run --release -p bevy_cloth_report -- --perf` ({}). Machine: {}, {} logical cores; \
          compute pool for the parallel columns: {threads} threads. Build: release, baseline \
          x86-64 target (SSE2, 4-lane packed `f32`).",
         std::env::consts::ARCH,
@@ -344,7 +344,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         w,
         "`bash scripts/perf.sh` (about 15 minutes on this machine, the first time longer: it \
          builds bevy_silk's Bevy) reruns the bevy_silk comparison and then this page; \
-         `cargo run --release --example perf` reruns this page alone. The criterion \
+         `cargo run --release -p bevy_cloth_report -- --perf` reruns this page alone. The criterion \
          benchmarks (`cargo bench`) time the same steps at 21² and 101²."
     )
     .ok();
