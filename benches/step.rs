@@ -13,11 +13,12 @@ use std::hint::black_box;
 use bevy::math::Affine3A;
 use bevy_cloth::collision::{Sphere, project_spheres};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
-use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
-use bevy_cloth::solver::linear::{self, LinearImplicitSolver, LinearSolver, LinearWorkspace};
-use bevy_cloth::solver::pbd::{self, PbdSolver, PbdWorkspace};
-use bevy_cloth::solver::symplectic::{self, SymplecticWorkspace};
-use bevy_cloth::solver::{SpringStiffness, StepParams};
+use bevy_cloth::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
+use bevy_cloth::solver::linear::{LinearImplicitSolver, LinearSolver, LinearWorkspace};
+use bevy_cloth::solver::pbd::{PbdSolver, PbdWorkspace};
+use bevy_cloth::solver::symplectic::SymplecticSolver;
+use bevy_cloth::solver::symplectic::SymplecticWorkspace;
+use bevy_cloth::solver::{Method, SpringStiffness, StepParams};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
 fn scene(n: usize) -> (ClothModel, StepParams) {
@@ -33,11 +34,11 @@ fn warm(model: &ClothModel, params: &StepParams) -> ClothState {
     let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
     let mut ws = ImplicitWorkspace::default();
     for _ in 0..20 {
-        implicit::step(
+        Method::step(
+            &ImplicitSolver::chebyshev(32, 0.995),
             model,
             &mut state,
             params,
-            &ImplicitSolver::chebyshev(32, 0.995),
             &[],
             &mut ws,
         )
@@ -60,7 +61,7 @@ fn steps(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new(name, n), |b| {
                 b.iter(|| {
                     state.copy_from(&start);
-                    implicit::step(&model, &mut state, &params, &config, &[], &mut ws).unwrap();
+                    Method::step(&config, &model, &mut state, &params, &[], &mut ws).unwrap();
                     black_box(&state);
                 })
             });
@@ -70,11 +71,11 @@ fn steps(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("pbd32", n), |b| {
             b.iter(|| {
                 state.copy_from(&start);
-                pbd::step(
+                Method::step(
+                    &PbdSolver { iterations: 32 },
                     &model,
                     &mut state,
                     &params,
-                    &PbdSolver { iterations: 32 },
                     &[],
                     &mut ws,
                 )
@@ -125,7 +126,7 @@ fn linear(c: &mut Criterion) {
             ..LinearImplicitSolver::default()
         };
         for _ in 0..20 {
-            linear::step(&model, &mut start, &params, &direct, &[], &mut ws).expect("valid step");
+            Method::step(&direct, &model, &mut start, &params, &[], &mut ws).expect("valid step");
         }
         for (name, config) in [
             ("cg25", LinearImplicitSolver::default()),
@@ -136,7 +137,7 @@ fn linear(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new(name, n), |b| {
                 b.iter(|| {
                     state.copy_from(&start);
-                    linear::step(&model, &mut state, &params, &config, &[], &mut ws).unwrap();
+                    Method::step(&config, &model, &mut state, &params, &[], &mut ws).unwrap();
                     black_box(&state);
                 })
             });
@@ -146,7 +147,7 @@ fn linear(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("symplectic", n), |b| {
             b.iter(|| {
                 state.copy_from(&start);
-                symplectic::step(&model, &mut state, &params, &[], &mut ws).unwrap();
+                Method::step(&SymplecticSolver, &model, &mut state, &params, &[], &mut ws).unwrap();
                 black_box(&state);
             })
         });

@@ -35,7 +35,8 @@ use crate::chart::{log_log_chart, machine, register_chart_font};
 use bevy_cloth::collision::PenaltySphere;
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
-use bevy_cloth::solver::exact::{self, ExactSolver, ExactWorkspace};
+use bevy_cloth::solver::Method;
+use bevy_cloth::solver::exact::{ExactSolver, ExactWorkspace};
 use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
 use bevy_cloth::solver::linear::LinearSolver;
 use bevy_cloth::solver::{SpringStiffness, StepParams, step_error};
@@ -241,20 +242,20 @@ pub fn estimate_rho(
             let mut a = state.clone();
             let mut b = state.clone();
             let mut ws = ImplicitWorkspace::default();
-            let _ = implicit::step(
+            let _ = Method::step(
+                &ImplicitSolver::jacobi(k),
                 model,
                 &mut a,
                 params,
-                &ImplicitSolver::jacobi(k),
                 &[],
                 &mut ws,
             );
             if k > 1 {
-                let _ = implicit::step(
+                let _ = Method::step(
+                    &ImplicitSolver::jacobi(k - 1),
                     model,
                     &mut b,
                     params,
-                    &ImplicitSolver::jacobi(k - 1),
                     &[],
                     &mut ws,
                 );
@@ -332,11 +333,11 @@ fn scene_report(
             max_iterations: 1000,
             ..ExactSolver::REFERENCE
         };
-        let _ = exact::step(
+        let _ = Method::step(
+            &config,
             &scene.model,
             &mut s,
             &scene.params,
-            &config,
             &scene.spheres,
             ws.get::<ExactWorkspace>(),
         );

@@ -81,13 +81,8 @@ impl Method for ExactSolver {
         "exact"
     }
 
-    fn iterations(&self) -> Option<u32> {
-        Some(self.max_iterations)
-    }
-
-    fn with_iterations(mut self, iterations: u32) -> Self {
-        self.max_iterations = iterations;
-        self
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        Some(&mut self.max_iterations)
     }
 
     fn validate(&self) -> Result<(), ParamError> {
@@ -100,15 +95,179 @@ impl Method for ExactSolver {
         Ok(())
     }
 
+    /// Advances `state` by one exact implicit-Euler step (see the module docs).
+    /// The report's residual is the final relative gradient norm.
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
         spheres: &[PenaltySphere],
-        workspace: &mut ExactWorkspace,
+        ws: &mut ExactWorkspace,
     ) -> Result<StepReport, StepError> {
-        step(model, state, params, self, spheres, workspace)
+        let config = self;
+        params.validate()?;
+        config.validate()?;
+        check_state(model, state)?;
+        let n = model.vertex_count();
+        if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
+            ws.system = Some(LinearSystem::new(model));
+            ws.cholesky.reset();
+        }
+        let system = ws.system.as_mut().expect("just built");
+        let dims = system.dimension();
+        ws.gradient.resize(dims, 0.0);
+        ws.direction.resize(dims, 0.0);
+        ws.zeros.resize(n, Vec3A::ZERO);
+        let dt = params.dt;
+        let pinned = model.pinned();
+        // The lab's prediction, in f64.
+        ws.x.clear();
+        ws.x_tilde.clear();
+        for (i, (x, v)) in state.positions.iter().zip(&state.velocities).enumerate() {
+            let x = x.as_dvec3();
+            let v = if pinned[i] {
+                DVec3::ZERO
+            } else {
+                v.as_dvec3() * f64::from(params.damping)
+            };
+            ws.x_tilde.push(x + dt * v);
+            ws.x.push(if config.start_at_current {
+                x
+            } else {
+                x + dt * v
+            });
+        }
+        // Pinned vertices stay where they are.
+        for &p in model.pins() {
+            ws.x[p as usize] = state.positions[p as usize].as_dvec3();
+            ws.x_tilde[p as usize] = ws.x[p as usize];
+        }
+        let mut report = ExactReport::default();
+        let g0 = gradient(
+            model,
+            system,
+            &ws.x,
+            &ws.x_tilde,
+            params,
+            spheres,
+            &mut ws.gradient,
+        );
+        let mut g_norm = g0;
+        let threshold = config.tolerance * g0;
+        let h2 = dt * dt;
+        let mut iterations = 0;
+        while g_norm > threshold && iterations < config.max_iterations {
+            iterations += 1;
+            // The Hessian, scaled by h²: (M − h²K) at x.
+            let mut solved = false;
+            for projected in [config.projected_only, true] {
+                let hessian = LinearImplicitSolver {
+                    springs: if projected {
+                        SpringJacobian::ClampCompression
+                    } else {
+                        SpringJacobian::Exact
+                    },
+                    penalty: if projected {
+                        PenaltyJacobian::Normal
+                    } else {
+                        PenaltyJacobian::Exact
+                    },
+                    ..LinearImplicitSolver::default()
+                };
+                system.assemble_at(model, &ws.x, &ws.zeros, params, &hessian, spheres);
+                for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
+                    *d = -h2 * g;
+                }
+                if ws
+                    .cholesky
+                    .solve_llt(system.matrix(), &mut ws.direction)
+                    .is_ok()
+                {
+                    if projected {
+                        report.projected_hessian += 1;
+                    } else {
+                        report.true_hessian += 1;
+                    }
+                    solved = true;
+                    break;
+                }
+            }
+            if !solved {
+                break;
+            }
+            // A Newton step below round-off: the gradient cannot get smaller in
+            // f64 (its floor is ~1e-16 of the spring forces); stop, converged.
+            let step_size = ws.direction.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+            let scale =
+                ws.x.iter()
+                    .fold(1.0f64, |m, x| m.max(x.abs().max_element()));
+            if step_size <= 1e-11 * scale {
+                report.at_round_off = true;
+                break;
+            }
+            // Backtracking (Armijo) line search along the Newton direction.
+            let phi = objective(model, &ws.x, &ws.x_tilde, params, spheres);
+            let slope: f64 = ws
+                .gradient
+                .iter()
+                .zip(&ws.direction)
+                .map(|(g, d)| g * d)
+                .sum();
+            let mut alpha = 1.0;
+            let mut accepted = false;
+            // Where the predicted decrease is below Φ's round-off, Armijo's test
+            // only sees noise: take the full (quadratically convergent) step.
+            let line_search = config.line_search && -slope > 1e-13 * (1.0 + phi.abs());
+            for _ in 0..40 {
+                ws.trial.clone_from(&ws.x);
+                for i in 0..n {
+                    if let Some(d) = system.dof(i) {
+                        ws.trial[i] += alpha
+                            * DVec3::new(ws.direction[d], ws.direction[d + 1], ws.direction[d + 2]);
+                    }
+                }
+                if !line_search
+                    || objective(model, &ws.trial, &ws.x_tilde, params, spheres)
+                        <= phi + 1e-4 * alpha * slope
+                {
+                    accepted = true;
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            if !accepted {
+                break;
+            }
+            std::mem::swap(&mut ws.x, &mut ws.trial);
+            g_norm = gradient(
+                model,
+                system,
+                &ws.x,
+                &ws.x_tilde,
+                params,
+                spheres,
+                &mut ws.gradient,
+            );
+        }
+        report.relative_gradient = if g0 > 0.0 { g_norm / g0 } else { 0.0 };
+        report.converged = g_norm <= threshold || report.at_round_off;
+        ws.last = report;
+        let ClothState {
+            positions,
+            velocities,
+        } = state;
+        for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+            if pinned[i] {
+                continue;
+            }
+            *v = ((ws.x[i] - x.as_dvec3()) / dt).as_vec3a();
+            *x = ws.x[i].as_vec3a();
+        }
+        Ok(StepReport {
+            iterations,
+            residual: Some(report.relative_gradient as f32),
+        })
     }
 }
 
@@ -237,180 +396,6 @@ fn gradient(
         add(b, -t, out);
     }
     out.iter().map(|v| v * v).sum::<f64>().sqrt()
-}
-
-/// Advances `state` by one exact implicit-Euler step (see the module docs).
-/// The report's residual is the final relative gradient norm.
-pub fn step(
-    model: &ClothModel,
-    state: &mut ClothState,
-    params: &StepParams,
-    config: &ExactSolver,
-    spheres: &[PenaltySphere],
-    ws: &mut ExactWorkspace,
-) -> Result<StepReport, StepError> {
-    params.validate()?;
-    config.validate()?;
-    check_state(model, state)?;
-    let n = model.vertex_count();
-    if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
-        ws.system = Some(LinearSystem::new(model));
-        ws.cholesky.reset();
-    }
-    let system = ws.system.as_mut().expect("just built");
-    let dims = system.dimension();
-    ws.gradient.resize(dims, 0.0);
-    ws.direction.resize(dims, 0.0);
-    ws.zeros.resize(n, Vec3A::ZERO);
-    let dt = params.dt;
-    let pinned = model.pinned();
-    // The lab's prediction, in f64.
-    ws.x.clear();
-    ws.x_tilde.clear();
-    for (i, (x, v)) in state.positions.iter().zip(&state.velocities).enumerate() {
-        let x = x.as_dvec3();
-        let v = if pinned[i] {
-            DVec3::ZERO
-        } else {
-            v.as_dvec3() * f64::from(params.damping)
-        };
-        ws.x_tilde.push(x + dt * v);
-        ws.x.push(if config.start_at_current {
-            x
-        } else {
-            x + dt * v
-        });
-    }
-    // Pinned vertices stay where they are.
-    for &p in model.pins() {
-        ws.x[p as usize] = state.positions[p as usize].as_dvec3();
-        ws.x_tilde[p as usize] = ws.x[p as usize];
-    }
-    let mut report = ExactReport::default();
-    let g0 = gradient(
-        model,
-        system,
-        &ws.x,
-        &ws.x_tilde,
-        params,
-        spheres,
-        &mut ws.gradient,
-    );
-    let mut g_norm = g0;
-    let threshold = config.tolerance * g0;
-    let h2 = dt * dt;
-    let mut iterations = 0;
-    while g_norm > threshold && iterations < config.max_iterations {
-        iterations += 1;
-        // The Hessian, scaled by h²: (M − h²K) at x.
-        let mut solved = false;
-        for projected in [config.projected_only, true] {
-            let hessian = LinearImplicitSolver {
-                springs: if projected {
-                    SpringJacobian::ClampCompression
-                } else {
-                    SpringJacobian::Exact
-                },
-                penalty: if projected {
-                    PenaltyJacobian::Normal
-                } else {
-                    PenaltyJacobian::Exact
-                },
-                ..LinearImplicitSolver::default()
-            };
-            system.assemble_at(model, &ws.x, &ws.zeros, params, &hessian, spheres);
-            for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
-                *d = -h2 * g;
-            }
-            if ws
-                .cholesky
-                .solve_llt(system.matrix(), &mut ws.direction)
-                .is_ok()
-            {
-                if projected {
-                    report.projected_hessian += 1;
-                } else {
-                    report.true_hessian += 1;
-                }
-                solved = true;
-                break;
-            }
-        }
-        if !solved {
-            break;
-        }
-        // A Newton step below round-off: the gradient cannot get smaller in
-        // f64 (its floor is ~1e-16 of the spring forces); stop, converged.
-        let step_size = ws.direction.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-        let scale =
-            ws.x.iter()
-                .fold(1.0f64, |m, x| m.max(x.abs().max_element()));
-        if step_size <= 1e-11 * scale {
-            report.at_round_off = true;
-            break;
-        }
-        // Backtracking (Armijo) line search along the Newton direction.
-        let phi = objective(model, &ws.x, &ws.x_tilde, params, spheres);
-        let slope: f64 = ws
-            .gradient
-            .iter()
-            .zip(&ws.direction)
-            .map(|(g, d)| g * d)
-            .sum();
-        let mut alpha = 1.0;
-        let mut accepted = false;
-        // Where the predicted decrease is below Φ's round-off, Armijo's test
-        // only sees noise: take the full (quadratically convergent) step.
-        let line_search = config.line_search && -slope > 1e-13 * (1.0 + phi.abs());
-        for _ in 0..40 {
-            ws.trial.clone_from(&ws.x);
-            for i in 0..n {
-                if let Some(d) = system.dof(i) {
-                    ws.trial[i] += alpha
-                        * DVec3::new(ws.direction[d], ws.direction[d + 1], ws.direction[d + 2]);
-                }
-            }
-            if !line_search
-                || objective(model, &ws.trial, &ws.x_tilde, params, spheres)
-                    <= phi + 1e-4 * alpha * slope
-            {
-                accepted = true;
-                break;
-            }
-            alpha *= 0.5;
-        }
-        if !accepted {
-            break;
-        }
-        std::mem::swap(&mut ws.x, &mut ws.trial);
-        g_norm = gradient(
-            model,
-            system,
-            &ws.x,
-            &ws.x_tilde,
-            params,
-            spheres,
-            &mut ws.gradient,
-        );
-    }
-    report.relative_gradient = if g0 > 0.0 { g_norm / g0 } else { 0.0 };
-    report.converged = g_norm <= threshold || report.at_round_off;
-    ws.last = report;
-    let ClothState {
-        positions,
-        velocities,
-    } = state;
-    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
-        if pinned[i] {
-            continue;
-        }
-        *v = ((ws.x[i] - x.as_dvec3()) / dt).as_vec3a();
-        *x = ws.x[i].as_vec3a();
-    }
-    Ok(StepReport {
-        iterations,
-        residual: Some(report.relative_gradient as f32),
-    })
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@ use bevy::math::Affine3A;
 
 use super::*;
 use crate::model::ClothBuilder;
-use crate::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
+use crate::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
 use crate::solver::linear::{self as lin, LinearImplicitSolver, LinearSolver, LinearWorkspace};
 use crate::solver::step_error;
 
@@ -11,11 +11,11 @@ fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
     let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = ExactWorkspace::default();
     for _ in 0..steps {
-        step(
+        Method::step(
+            &ExactSolver::default(),
             &model,
             &mut state,
             &StepParams::LAB,
-            &ExactSolver::default(),
             &[],
             &mut ws,
         )
@@ -43,11 +43,11 @@ fn implicit_error(
     config: ImplicitSolver,
 ) -> f64 {
     let mut state = start.clone();
-    implicit::step(
+    Method::step(
+        &config,
         model,
         &mut state,
         params,
-        &config,
         &[],
         &mut ImplicitWorkspace::default(),
     )
@@ -62,7 +62,7 @@ fn exact_step(
 ) -> (ClothState, ExactReport, u32) {
     let mut state = start.clone();
     let mut ws = ExactWorkspace::default();
-    let r = step(model, &mut state, &StepParams::LAB, config, &[], &mut ws).unwrap();
+    let r = Method::step(config, model, &mut state, &StepParams::LAB, &[], &mut ws).unwrap();
     (state, ws.last_report(), r.iterations)
 }
 
@@ -136,10 +136,10 @@ fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
         ..LinearImplicitSolver::default()
     };
     for _ in 0..30 {
-        lin::step(&model, &mut start, &params, &direct, &[], &mut ws).unwrap();
+        Method::step(&direct, &model, &mut start, &params, &[], &mut ws).unwrap();
     }
     let mut linear_state = start.clone();
-    lin::step(&model, &mut linear_state, &params, &direct, &[], &mut ws).unwrap();
+    Method::step(&direct, &model, &mut linear_state, &params, &[], &mut ws).unwrap();
     let mut newton_state = start.clone();
     let config = ExactSolver {
         max_iterations: 1,
@@ -149,11 +149,11 @@ fn one_full_newton_step_from_the_current_state_is_the_linearly_implicit_step() {
         ..ExactSolver::default()
     };
     let mut exact_ws = ExactWorkspace::default();
-    step(
+    Method::step(
+        &config,
         &model,
         &mut newton_state,
         &params,
-        &config,
         &[],
         &mut exact_ws,
     )
@@ -179,10 +179,10 @@ fn cg_error_falls_with_iterations_against_the_direct_solve() {
     };
     let mut ws = LinearWorkspace::default();
     for _ in 0..30 {
-        lin::step(&model, &mut start, &params, &direct, &[], &mut ws).unwrap();
+        Method::step(&direct, &model, &mut start, &params, &[], &mut ws).unwrap();
     }
     let mut reference = start.clone();
-    lin::step(&model, &mut reference, &params, &direct, &[], &mut ws).unwrap();
+    Method::step(&direct, &model, &mut reference, &params, &[], &mut ws).unwrap();
     let errors: Vec<f64> = [1u32, 4, 16, 64]
         .iter()
         .map(|&k| {
@@ -195,11 +195,11 @@ fn cg_error_falls_with_iterations_against_the_direct_solve() {
                 }),
                 ..LinearImplicitSolver::default()
             };
-            lin::step(
+            Method::step(
+                &config,
                 &model,
                 &mut s,
                 &params,
-                &config,
                 &[],
                 &mut LinearWorkspace::default(),
             )
@@ -221,22 +221,22 @@ fn jacobi_converges_on_a_cloth_with_shear_and_bending_springs() {
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = ExactWorkspace::default();
     for _ in 0..30 {
-        step(
+        Method::step(
+            &ExactSolver::default(),
             &model,
             &mut start,
             &params,
-            &ExactSolver::default(),
             &[],
             &mut ws,
         )
         .unwrap();
     }
     let mut exact = start.clone();
-    step(
+    Method::step(
+        &ExactSolver::default(),
         &model,
         &mut exact,
         &params,
-        &ExactSolver::default(),
         &[],
         &mut ws,
     )

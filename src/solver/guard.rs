@@ -330,7 +330,8 @@ where
 mod tests {
     use super::*;
     use crate::model::ClothBuilder;
-    use crate::solver::symplectic::{self, SymplecticWorkspace};
+    use crate::solver::Method;
+    use crate::solver::symplectic::{SymplecticSolver, SymplecticWorkspace};
     use bevy::math::Affine3A;
 
     fn lab() -> (ClothModel, ClothState) {
@@ -356,7 +357,7 @@ mod tests {
                 &mut state,
                 &mut backup,
                 &params,
-                |s, p| symplectic::step(&model, s, p, &[], &mut ws),
+                |s, p| Method::step(&SymplecticSolver, &model, s, p, &[], &mut ws),
             );
             if let Err(e) = r {
                 assert_eq!(state, before, "restored");
@@ -397,7 +398,7 @@ mod tests {
                 &mut state,
                 &mut backup,
                 &params,
-                |s, p| symplectic::step(&model, s, p, &[], &mut ws),
+                |s, p| Method::step(&SymplecticSolver, &model, s, p, &[], &mut ws),
             )
             .expect("halving keeps it stable");
             substeps.push(r.substeps);
@@ -431,7 +432,7 @@ mod tests {
             &params,
             |s, p| {
                 calls += 1;
-                symplectic::step(&model, s, p, &[], &mut ws)
+                Method::step(&SymplecticSolver, &model, s, p, &[], &mut ws)
             },
         );
         assert!(matches!(

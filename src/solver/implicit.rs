@@ -111,13 +111,8 @@ impl Method for ImplicitSolver {
         }
     }
 
-    fn iterations(&self) -> Option<u32> {
-        Some(self.iterations)
-    }
-
-    fn with_iterations(mut self, iterations: u32) -> Self {
-        self.iterations = iterations;
-        self
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        Some(&mut self.iterations)
     }
 
     fn validate(&self) -> Result<(), ParamError> {
@@ -132,15 +127,184 @@ impl Method for ImplicitSolver {
         Ok(())
     }
 
+    /// Advances `state` by one implicit-Euler step (see the module docs).
+    ///
+    /// Returns the iterations performed and the final gradient norm. On error
+    /// the state is unchanged.
+    ///
+    /// Each iteration is two passes: one over springs, which computes every
+    /// spring's gradient term once (square roots and divisions in packed SIMD
+    /// blocks), and one over vertices, which gathers each vertex's terms over
+    /// its adjacency and updates its position in the same loop. Both passes are
+    /// split in fixed chunks, run in parallel for large cloths.
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
         spheres: &[PenaltySphere],
-        workspace: &mut ImplicitWorkspace,
+        ws: &mut ImplicitWorkspace,
     ) -> Result<StepReport, StepError> {
-        step(model, state, params, self, spheres, workspace)
+        let config = self;
+        params.validate()?;
+        config.validate()?;
+        check_state(model, state)?;
+        let n = model.vertex_count();
+        ws.prepare(n, config.chebyshev.is_some());
+        let dt = params.dt as f32;
+        let inv_dt2 = 1.0 / (dt * dt);
+        let pinned = model.pinned();
+        // The diagonal Hessian: the lab's 4k for a cloth of triangle-edge
+        // (stretch) springs only; with shear or bending springs a vertex has up
+        // to 12 springs and 4k no longer bounds the Hessian (the iteration
+        // diverges), so the sum of the vertex's spring stiffnesses is used.
+        let counts = model.topology().spring_counts();
+        let lab_diagonal =
+            counts[SpringKind::Shear as usize] == 0 && counts[SpringKind::Bend as usize] == 0;
+        let k = params.stiffness.as_array();
+        let springs = model.topology().springs();
+        let adjacency = model.topology().adjacency();
+        let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
+        stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+        // One term per spring and a zero past them, which padded gathers read.
+        ws.gather.terms.clear();
+        ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
+        let ClothState {
+            positions: x,
+            velocities: v,
+        } = state;
+
+        // 1.a: damping, prediction, initial guess.
+        for i in 0..n {
+            if !pinned[i] {
+                v[i] *= params.damping;
+                x[i] += dt * v[i];
+            }
+            ws.x_tilde[i] = x[i];
+            ws.gather.target[i] = x[i] + gravity_step;
+            let m = model.masses()[i];
+            ws.gather.mass_term[i] = m * inv_dt2;
+            let spring_diag = if lab_diagonal {
+                4.0 * k[SpringKind::Stretch as usize]
+            } else {
+                adjacency
+                    .of(i)
+                    .iter()
+                    .map(|inc| k[springs[inc.spring as usize].kind as usize])
+                    .sum()
+            };
+            ws.gather.base_diag[i] = m * inv_dt2 + spring_diag;
+            ws.gather.inv_diag[i] = if pinned[i] {
+                0.0
+            } else {
+                1.0 / ws.gather.base_diag[i]
+            };
+        }
+        if config.chebyshev.is_some() {
+            ws.x_prev.copy_from_slice(x);
+        }
+
+        // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
+        let mut omega = 1.0f32;
+        // Iterations before acceleration starts, and ρ.
+        let (delay, mut rho) = match config.chebyshev {
+            Some(Rho::Auto) => ((config.iterations / 4).clamp(2, 8), 0.0),
+            Some(Rho::Fixed(r)) => (0, r),
+            None => (0, 0.0),
+        };
+        ws.update_norms.clear();
+        for k in 0..config.iterations {
+            spring_terms(
+                params.parallel,
+                model,
+                x,
+                &ws.coeffs,
+                &mut ws.gather.terms[..springs.len()],
+            );
+            let pass = VertexPass::new(&ws.gather, model, spheres);
+            // A pinned vertex has a zero inverse diagonal, so neither update
+            // moves it (Chebyshev: its iterate and the one before are equal).
+            match config.chebyshev {
+                None => {
+                    let pass = &pass;
+                    for_chunks(params.parallel, x, move |start, x| {
+                        for (j, xi) in x.iter_mut().enumerate() {
+                            let (g, d) = pass.gradient(start + j, *xi);
+                            *xi -= g * d;
+                        }
+                    });
+                }
+                Some(kind) => {
+                    if kind == Rho::Auto && k == delay {
+                        rho = rho_from_update_norms(&ws.update_norms);
+                    }
+                    omega = match k.checked_sub(delay) {
+                        None | Some(0) => 1.0,
+                        Some(1) => 2.0 / (2.0 - rho * rho),
+                        _ => 4.0 / (4.0 - rho * rho * omega),
+                    };
+                    // Each chunk updates its vertices and the previous iterate,
+                    // and sums its squared update norms; the sums are added in
+                    // chunk order, so the total is the same on any thread count.
+                    // Copies, so the loop keeps them in registers.
+                    let (measure, omega, pass) = (k < delay, omega, &pass);
+                    for_chunks2(
+                        params.parallel,
+                        x,
+                        &mut ws.x_prev,
+                        &mut ws.chunk_sums,
+                        move |start, x, prev| {
+                            let mut update = 0.0f64;
+                            for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
+                                let (g, d) = pass.gradient(start + j, *xi);
+                                let step = g * d;
+                                let x_hat = *xi - step;
+                                let before = *prev;
+                                *prev = *xi;
+                                *xi = omega * (x_hat - before) + before;
+                                if measure {
+                                    update += f64::from(step.length_squared());
+                                }
+                            }
+                            update
+                        },
+                    );
+                    if k < delay {
+                        let update: f64 = ws.chunk_sums.iter().sum();
+                        ws.update_norms.push(update.sqrt());
+                    }
+                }
+            }
+        }
+
+        // Residual at the final iterate: the gradient over free vertices.
+        spring_terms(
+            params.parallel,
+            model,
+            x,
+            &ws.coeffs,
+            &mut ws.gather.terms[..springs.len()],
+        );
+        let pass = VertexPass::new(&ws.gather, model, spheres);
+        let mut residual = 0.0f32;
+        for i in 0..n {
+            if !pinned[i] {
+                residual += pass.gradient(i, x[i]).0.length_squared();
+            }
+        }
+        let residual = residual.sqrt();
+
+        // 1.c: velocities from the positions.
+        let inv_dt = 1.0 / dt;
+        for i in 0..n {
+            if !pinned[i] {
+                v[i] += (x[i] - ws.x_tilde[i]) * inv_dt;
+            }
+        }
+        Ok(StepReport {
+            iterations: config.iterations,
+            residual: Some(residual),
+        })
     }
 }
 
@@ -261,185 +425,6 @@ impl<'a> VertexPass<'a> {
         }
         (g, inv_diag)
     }
-}
-
-/// Advances `state` by one implicit-Euler step (see the module docs).
-///
-/// Returns the iterations performed and the final gradient norm. On error
-/// the state is unchanged.
-///
-/// Each iteration is two passes: one over springs, which computes every
-/// spring's gradient term once (square roots and divisions in packed SIMD
-/// blocks), and one over vertices, which gathers each vertex's terms over
-/// its adjacency and updates its position in the same loop. Both passes are
-/// split in fixed chunks, run in parallel for large cloths.
-pub fn step(
-    model: &ClothModel,
-    state: &mut ClothState,
-    params: &StepParams,
-    config: &ImplicitSolver,
-    spheres: &[PenaltySphere],
-    ws: &mut ImplicitWorkspace,
-) -> Result<StepReport, StepError> {
-    params.validate()?;
-    config.validate()?;
-    check_state(model, state)?;
-    let n = model.vertex_count();
-    ws.prepare(n, config.chebyshev.is_some());
-    let dt = params.dt as f32;
-    let inv_dt2 = 1.0 / (dt * dt);
-    let pinned = model.pinned();
-    // The diagonal Hessian: the lab's 4k for a cloth of triangle-edge
-    // (stretch) springs only; with shear or bending springs a vertex has up
-    // to 12 springs and 4k no longer bounds the Hessian (the iteration
-    // diverges), so the sum of the vertex's spring stiffnesses is used.
-    let counts = model.topology().spring_counts();
-    let lab_diagonal =
-        counts[SpringKind::Shear as usize] == 0 && counts[SpringKind::Bend as usize] == 0;
-    let k = params.stiffness.as_array();
-    let springs = model.topology().springs();
-    let adjacency = model.topology().adjacency();
-    let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
-    stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-    // One term per spring and a zero past them, which padded gathers read.
-    ws.gather.terms.clear();
-    ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
-    let ClothState {
-        positions: x,
-        velocities: v,
-    } = state;
-
-    // 1.a: damping, prediction, initial guess.
-    for i in 0..n {
-        if !pinned[i] {
-            v[i] *= params.damping;
-            x[i] += dt * v[i];
-        }
-        ws.x_tilde[i] = x[i];
-        ws.gather.target[i] = x[i] + gravity_step;
-        let m = model.masses()[i];
-        ws.gather.mass_term[i] = m * inv_dt2;
-        let spring_diag = if lab_diagonal {
-            4.0 * k[SpringKind::Stretch as usize]
-        } else {
-            adjacency
-                .of(i)
-                .iter()
-                .map(|inc| k[springs[inc.spring as usize].kind as usize])
-                .sum()
-        };
-        ws.gather.base_diag[i] = m * inv_dt2 + spring_diag;
-        ws.gather.inv_diag[i] = if pinned[i] {
-            0.0
-        } else {
-            1.0 / ws.gather.base_diag[i]
-        };
-    }
-    if config.chebyshev.is_some() {
-        ws.x_prev.copy_from_slice(x);
-    }
-
-    // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
-    let mut omega = 1.0f32;
-    // Iterations before acceleration starts, and ρ.
-    let (delay, mut rho) = match config.chebyshev {
-        Some(Rho::Auto) => ((config.iterations / 4).clamp(2, 8), 0.0),
-        Some(Rho::Fixed(r)) => (0, r),
-        None => (0, 0.0),
-    };
-    ws.update_norms.clear();
-    for k in 0..config.iterations {
-        spring_terms(
-            params.parallel,
-            model,
-            x,
-            &ws.coeffs,
-            &mut ws.gather.terms[..springs.len()],
-        );
-        let pass = VertexPass::new(&ws.gather, model, spheres);
-        // A pinned vertex has a zero inverse diagonal, so neither update
-        // moves it (Chebyshev: its iterate and the one before are equal).
-        match config.chebyshev {
-            None => {
-                let pass = &pass;
-                for_chunks(params.parallel, x, move |start, x| {
-                    for (j, xi) in x.iter_mut().enumerate() {
-                        let (g, d) = pass.gradient(start + j, *xi);
-                        *xi -= g * d;
-                    }
-                });
-            }
-            Some(kind) => {
-                if kind == Rho::Auto && k == delay {
-                    rho = rho_from_update_norms(&ws.update_norms);
-                }
-                omega = match k.checked_sub(delay) {
-                    None | Some(0) => 1.0,
-                    Some(1) => 2.0 / (2.0 - rho * rho),
-                    _ => 4.0 / (4.0 - rho * rho * omega),
-                };
-                // Each chunk updates its vertices and the previous iterate,
-                // and sums its squared update norms; the sums are added in
-                // chunk order, so the total is the same on any thread count.
-                // Copies, so the loop keeps them in registers.
-                let (measure, omega, pass) = (k < delay, omega, &pass);
-                for_chunks2(
-                    params.parallel,
-                    x,
-                    &mut ws.x_prev,
-                    &mut ws.chunk_sums,
-                    move |start, x, prev| {
-                        let mut update = 0.0f64;
-                        for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
-                            let (g, d) = pass.gradient(start + j, *xi);
-                            let step = g * d;
-                            let x_hat = *xi - step;
-                            let before = *prev;
-                            *prev = *xi;
-                            *xi = omega * (x_hat - before) + before;
-                            if measure {
-                                update += f64::from(step.length_squared());
-                            }
-                        }
-                        update
-                    },
-                );
-                if k < delay {
-                    let update: f64 = ws.chunk_sums.iter().sum();
-                    ws.update_norms.push(update.sqrt());
-                }
-            }
-        }
-    }
-
-    // Residual at the final iterate: the gradient over free vertices.
-    spring_terms(
-        params.parallel,
-        model,
-        x,
-        &ws.coeffs,
-        &mut ws.gather.terms[..springs.len()],
-    );
-    let pass = VertexPass::new(&ws.gather, model, spheres);
-    let mut residual = 0.0f32;
-    for i in 0..n {
-        if !pinned[i] {
-            residual += pass.gradient(i, x[i]).0.length_squared();
-        }
-    }
-    let residual = residual.sqrt();
-
-    // 1.c: velocities from the positions.
-    let inv_dt = 1.0 / dt;
-    for i in 0..n {
-        if !pinned[i] {
-            v[i] += (x[i] - ws.x_tilde[i]) * inv_dt;
-        }
-    }
-    Ok(StepReport {
-        iterations: config.iterations,
-        residual: Some(residual),
-    })
 }
 
 /// `ρ` from successive Jacobi update norms `‖x_{k+1} − x_k‖`: their

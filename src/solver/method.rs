@@ -32,16 +32,25 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
     /// or `linear-cg`.
     fn name(&self) -> &'static str;
 
+    /// The iteration count per step of an iterative method, to read or set
+    /// (`None` for a method without one).
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        None
+    }
+
     /// Iterations per step of an iterative method (`None` for a direct one).
     fn iterations(&self) -> Option<u32> {
-        None
+        let mut method = *self;
+        method.iterations_mut().map(|k| *k)
     }
 
     /// The same method with another iteration count (unchanged for a
     /// method without iterations).
     #[must_use]
-    fn with_iterations(self, iterations: u32) -> Self {
-        let _ = iterations;
+    fn with_iterations(mut self, iterations: u32) -> Self {
+        if let Some(k) = self.iterations_mut() {
+            *k = iterations;
+        }
         self
     }
 

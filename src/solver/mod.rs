@@ -1,19 +1,19 @@
 //! Pure numerics: one file per method, one entry point each. No ECS types.
 //!
-//! Every method advances a [`ClothState`](crate::model::ClothState) by one time step of a
+//! Every method ([`Method::step`], its one entry point) advances a [`ClothState`](crate::model::ClothState) by one time step of a
 //! [`ClothModel`](crate::model::ClothModel) under [`StepParams`], using a method-specific workspace that
 //! is allocated on the first step and reused afterwards (no allocation per
 //! step once the sizes are known).
 //!
 //! Each method is a settings type implementing [`Method`], in its own file:
 //!
-//! | settings ([`Method`]) | method | entry point | spec |
+//! | settings ([`Method`]) | method | file | spec |
 //! |---|---|---|---|
-//! | [`ImplicitSolver`](implicit::ImplicitSolver) | implicit Euler, diagonal-Hessian Newton (Jacobi), optional Chebyshev | [`implicit::step`] | lab part 1 |
-//! | [`PbdSolver`](pbd::PbdSolver) | position-based dynamics, Jacobi strain limiting | [`pbd::step`] | lab part 2 |
-//! | [`SymplecticSolver`](symplectic::SymplecticSolver) | symplectic Euler (`A = M`) | [`symplectic::step`] | the assignment's first stage |
-//! | [`LinearImplicitSolver`](linear::LinearImplicitSolver) | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear::step`] | the assignment |
-//! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search | [`exact::step`] | the reference |
+//! | [`ImplicitSolver`](implicit::ImplicitSolver) | implicit Euler, diagonal-Hessian Newton (Jacobi), optional Chebyshev | [`implicit`] | lab part 1 |
+//! | [`PbdSolver`](pbd::PbdSolver) | position-based dynamics, Jacobi strain limiting | [`pbd`] | lab part 2 |
+//! | [`SymplecticSolver`](symplectic::SymplecticSolver) | symplectic Euler (`A = M`) | [`symplectic`] | the assignment's first stage |
+//! | [`LinearImplicitSolver`](linear::LinearImplicitSolver) | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear`] | the assignment |
+//! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search | [`exact`] | the reference |
 //!
 //! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
 //! inside every step: as forces with their stiffness in the linear system

@@ -61,13 +61,8 @@ impl Method for PbdSolver {
         "pbd"
     }
 
-    fn iterations(&self) -> Option<u32> {
-        Some(self.iterations)
-    }
-
-    fn with_iterations(mut self, iterations: u32) -> Self {
-        self.iterations = iterations;
-        self
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        Some(&mut self.iterations)
     }
 
     fn validate(&self) -> Result<(), ParamError> {
@@ -77,15 +72,98 @@ impl Method for PbdSolver {
         Ok(())
     }
 
+    /// Advances `state` by one PBD step (see the module docs). Stiffness is not
+    /// used: strain limiting restores rest lengths directly.
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
         spheres: &[PenaltySphere],
-        workspace: &mut PbdWorkspace,
+        ws: &mut PbdWorkspace,
     ) -> Result<StepReport, StepError> {
-        step(model, state, params, self, spheres, workspace)
+        let config = self;
+        params.validate()?;
+        config.validate()?;
+        check_state(model, state)?;
+        let n = model.vertex_count();
+        let springs = model.topology().springs();
+        let adjacency = model.topology().adjacency();
+        let pinned = model.pinned();
+        ws.proposals.clear();
+        ws.proposals.resize(springs.len() + 1, [Vec3A::ZERO; 2]);
+        ws.coeffs.clear();
+        ws.coeffs
+            .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
+        ws.inv_weight.clear();
+        ws.inv_weight
+            .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
+        let dt = params.dt as f32;
+        let inv_dt = 1.0 / dt;
+        let gravity = Vec3A::from(params.gravity);
+        let ClothState {
+            positions: x,
+            velocities: v,
+        } = state;
+
+        for i in 0..n {
+            if !pinned[i] {
+                let mut accel = gravity;
+                for sphere in spheres {
+                    if let Some(contact) = sphere.contact(x[i]) {
+                        accel += contact.force / model.masses()[i];
+                    }
+                }
+                v[i] = v[i] * params.damping + dt * accel;
+                x[i] += dt * v[i];
+            }
+        }
+
+        for _ in 0..config.iterations {
+            let proposals = &mut ws.proposals;
+            spring_scales(springs, &ws.coeffs, x, |e, d, half| {
+                let s = &springs[e];
+                let mid = 0.5 * (x[s.a as usize] + x[s.b as usize]);
+                let half = d * half;
+                proposals[e] = [mid + half, mid - half];
+            });
+            let proposals = &ws.proposals;
+            let padded = adjacency.padded();
+            for i in 0..n {
+                if pinned[i] {
+                    continue;
+                }
+                let own = SELF_WEIGHT * x[i];
+                let sum = match padded {
+                    // Fixed length, summed as a tree (see the implicit solver).
+                    Some(padded) => {
+                        let [p, m] = &padded[i];
+                        let a = |e: u32| proposals[e as usize][0];
+                        let b = |e: u32| proposals[e as usize][1];
+                        own + (((a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])))
+                            + ((b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3]))))
+                    }
+                    None => {
+                        let (starts, ends) = adjacency.by_side(i);
+                        let mut sum = own;
+                        for &e in starts {
+                            sum += proposals[e as usize][0];
+                        }
+                        for &e in ends {
+                            sum += proposals[e as usize][1];
+                        }
+                        sum
+                    }
+                };
+                let new = sum * ws.inv_weight[i];
+                v[i] += (new - x[i]) * inv_dt;
+                x[i] = new;
+            }
+        }
+        Ok(StepReport {
+            iterations: config.iterations,
+            residual: None,
+        })
     }
 }
 
@@ -100,97 +178,4 @@ pub struct PbdWorkspace {
     coeffs: Vec<[f32; 2]>,
     /// Per vertex: `1/(0.2 + nᵢ)`.
     inv_weight: Vec<f32>,
-}
-
-/// Advances `state` by one PBD step (see the module docs). Stiffness is not
-/// used: strain limiting restores rest lengths directly.
-pub fn step(
-    model: &ClothModel,
-    state: &mut ClothState,
-    params: &StepParams,
-    config: &PbdSolver,
-    spheres: &[PenaltySphere],
-    ws: &mut PbdWorkspace,
-) -> Result<StepReport, StepError> {
-    params.validate()?;
-    config.validate()?;
-    check_state(model, state)?;
-    let n = model.vertex_count();
-    let springs = model.topology().springs();
-    let adjacency = model.topology().adjacency();
-    let pinned = model.pinned();
-    ws.proposals.clear();
-    ws.proposals.resize(springs.len() + 1, [Vec3A::ZERO; 2]);
-    ws.coeffs.clear();
-    ws.coeffs
-        .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
-    ws.inv_weight.clear();
-    ws.inv_weight
-        .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
-    let dt = params.dt as f32;
-    let inv_dt = 1.0 / dt;
-    let gravity = Vec3A::from(params.gravity);
-    let ClothState {
-        positions: x,
-        velocities: v,
-    } = state;
-
-    for i in 0..n {
-        if !pinned[i] {
-            let mut accel = gravity;
-            for sphere in spheres {
-                if let Some(contact) = sphere.contact(x[i]) {
-                    accel += contact.force / model.masses()[i];
-                }
-            }
-            v[i] = v[i] * params.damping + dt * accel;
-            x[i] += dt * v[i];
-        }
-    }
-
-    for _ in 0..config.iterations {
-        let proposals = &mut ws.proposals;
-        spring_scales(springs, &ws.coeffs, x, |e, d, half| {
-            let s = &springs[e];
-            let mid = 0.5 * (x[s.a as usize] + x[s.b as usize]);
-            let half = d * half;
-            proposals[e] = [mid + half, mid - half];
-        });
-        let proposals = &ws.proposals;
-        let padded = adjacency.padded();
-        for i in 0..n {
-            if pinned[i] {
-                continue;
-            }
-            let own = SELF_WEIGHT * x[i];
-            let sum = match padded {
-                // Fixed length, summed as a tree (see the implicit solver).
-                Some(padded) => {
-                    let [p, m] = &padded[i];
-                    let a = |e: u32| proposals[e as usize][0];
-                    let b = |e: u32| proposals[e as usize][1];
-                    own + (((a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])))
-                        + ((b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3]))))
-                }
-                None => {
-                    let (starts, ends) = adjacency.by_side(i);
-                    let mut sum = own;
-                    for &e in starts {
-                        sum += proposals[e as usize][0];
-                    }
-                    for &e in ends {
-                        sum += proposals[e as usize][1];
-                    }
-                    sum
-                }
-            };
-            let new = sum * ws.inv_weight[i];
-            v[i] += (new - x[i]) * inv_dt;
-            x[i] = new;
-        }
-    }
-    Ok(StepReport {
-        iterations: config.iterations,
-        residual: None,
-    })
 }

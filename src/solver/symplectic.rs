@@ -37,15 +37,58 @@ impl Method for SymplecticSolver {
         Ok(())
     }
 
+    /// Advances `state` by one symplectic Euler step (see the module docs).
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
         spheres: &[PenaltySphere],
-        workspace: &mut SymplecticWorkspace,
+        ws: &mut SymplecticWorkspace,
     ) -> Result<StepReport, StepError> {
-        step(model, state, params, spheres, workspace)
+        params.validate()?;
+        check_state(model, state)?;
+        ws.terms
+            .resize(model.topology().springs().len(), Vec3A::ZERO);
+        // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
+        stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+        spring_terms(
+            params.parallel,
+            model,
+            &state.positions,
+            &ws.coeffs,
+            &mut ws.terms,
+        );
+        let h = params.dt as f32;
+        let gravity = Vec3A::from(params.gravity);
+        let adjacency = model.topology().adjacency();
+        let pinned = model.pinned();
+        for (i, &m) in model.masses().iter().enumerate() {
+            if pinned[i] {
+                continue;
+            }
+            let x = state.positions[i];
+            let mut f = gravity * m;
+            let (starts, ends) = adjacency.by_side(i);
+            for &e in starts {
+                f -= ws.terms[e as usize];
+            }
+            for &e in ends {
+                f += ws.terms[e as usize];
+            }
+            for sphere in spheres {
+                if let Some(contact) = sphere.contact(x) {
+                    f += contact.force;
+                }
+            }
+            let v = state.velocities[i] * params.damping + f * (h / m);
+            state.velocities[i] = v;
+            state.positions[i] = x + h * v;
+        }
+        Ok(StepReport {
+            iterations: 0,
+            residual: None,
+        })
     }
 }
 
@@ -54,57 +97,4 @@ impl Method for SymplecticSolver {
 pub struct SymplecticWorkspace {
     terms: Vec<Vec3A>,
     coeffs: Vec<[f32; 2]>,
-}
-
-/// Advances `state` by one symplectic Euler step (see the module docs).
-pub fn step(
-    model: &ClothModel,
-    state: &mut ClothState,
-    params: &StepParams,
-    spheres: &[PenaltySphere],
-    ws: &mut SymplecticWorkspace,
-) -> Result<StepReport, StepError> {
-    params.validate()?;
-    check_state(model, state)?;
-    ws.terms
-        .resize(model.topology().springs().len(), Vec3A::ZERO);
-    // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
-    stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-    spring_terms(
-        params.parallel,
-        model,
-        &state.positions,
-        &ws.coeffs,
-        &mut ws.terms,
-    );
-    let h = params.dt as f32;
-    let gravity = Vec3A::from(params.gravity);
-    let adjacency = model.topology().adjacency();
-    let pinned = model.pinned();
-    for (i, &m) in model.masses().iter().enumerate() {
-        if pinned[i] {
-            continue;
-        }
-        let x = state.positions[i];
-        let mut f = gravity * m;
-        let (starts, ends) = adjacency.by_side(i);
-        for &e in starts {
-            f -= ws.terms[e as usize];
-        }
-        for &e in ends {
-            f += ws.terms[e as usize];
-        }
-        for sphere in spheres {
-            if let Some(contact) = sphere.contact(x) {
-                f += contact.force;
-            }
-        }
-        let v = state.velocities[i] * params.damping + f * (h / m);
-        state.velocities[i] = v;
-        state.positions[i] = x + h * v;
-    }
-    Ok(StepReport {
-        iterations: 0,
-        residual: None,
-    })
 }

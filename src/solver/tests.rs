@@ -1,7 +1,7 @@
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
-use super::implicit::{self, ImplicitSolver, ImplicitWorkspace};
-use super::pbd::{self, PbdSolver, PbdWorkspace};
+use super::implicit::{ImplicitSolver, ImplicitWorkspace};
+use super::pbd::{PbdSolver, PbdWorkspace};
 use super::*;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::ParamError;
@@ -28,11 +28,11 @@ fn swinging(steps: usize) -> (ClothModel, ClothState) {
     let (model, mut state) = lab();
     let mut ws = ImplicitWorkspace::default();
     for _ in 0..steps {
-        implicit::step(
+        Method::step(
+            &ImplicitSolver::default(),
             &model,
             &mut state,
             &StepParams::LAB,
-            &ImplicitSolver::default(),
             &[],
             &mut ws,
         )
@@ -88,7 +88,7 @@ fn jacobi_residual_falls_with_iterations_and_chebyshev_beats_it() {
     let residual = |config: ImplicitSolver| {
         let mut state = start.clone();
         let mut ws = ImplicitWorkspace::default();
-        implicit::step(&model, &mut state, &StepParams::LAB, &config, &[], &mut ws)
+        Method::step(&config, &model, &mut state, &StepParams::LAB, &[], &mut ws)
             .unwrap()
             .residual
             .unwrap()
@@ -108,11 +108,11 @@ fn implicit_step_keeps_pins_and_is_deterministic() {
         let mut state = start.clone();
         let mut ws = ImplicitWorkspace::default();
         for _ in 0..3 {
-            implicit::step(
+            Method::step(
+                &ImplicitSolver::chebyshev(32, 0.995),
                 &model,
                 &mut state,
                 &StepParams::LAB,
-                &ImplicitSolver::chebyshev(32, 0.995),
                 &[],
                 &mut ws,
             )
@@ -163,21 +163,21 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
     ];
     for (params, expected) in cases {
         let mut state = start.clone();
-        let err = implicit::step(
+        let err = Method::step(
+            &ImplicitSolver::default(),
             &model,
             &mut state,
             &params,
-            &ImplicitSolver::default(),
             &[],
             &mut ImplicitWorkspace::default(),
         )
         .unwrap_err();
         assert_eq!(err, StepError::Params(expected));
-        let err = pbd::step(
+        let err = Method::step(
+            &PbdSolver::default(),
             &model,
             &mut state,
             &params,
-            &PbdSolver::default(),
             &[],
             &mut PbdWorkspace::default(),
         )
@@ -187,22 +187,22 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
     }
     let mut state = start.clone();
     assert_eq!(
-        implicit::step(
+        Method::step(
+            &ImplicitSolver::chebyshev(32, 1.0),
             &model,
             &mut state,
             &StepParams::LAB,
-            &ImplicitSolver::chebyshev(32, 1.0),
             &[],
             &mut ImplicitWorkspace::default()
         ),
         Err(StepError::Params(ParamError::Rho(1.0)))
     );
     assert_eq!(
-        pbd::step(
+        Method::step(
+            &PbdSolver { iterations: 0 },
             &model,
             &mut state,
             &StepParams::LAB,
-            &PbdSolver { iterations: 0 },
             &[],
             &mut PbdWorkspace::default()
         ),
@@ -210,11 +210,11 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
     );
     state.positions.pop();
     assert_eq!(
-        pbd::step(
+        Method::step(
+            &PbdSolver::default(),
             &model,
             &mut state,
             &StepParams::LAB,
-            &PbdSolver::default(),
             &[],
             &mut PbdWorkspace::default()
         ),
@@ -231,11 +231,11 @@ fn pbd_stretch_falls_with_iterations_and_pins_hold() {
         let (model, mut state) = lab();
         let mut ws = PbdWorkspace::default();
         for _ in 0..100 {
-            pbd::step(
+            Method::step(
+                &PbdSolver { iterations },
                 &model,
                 &mut state,
                 &StepParams::LAB,
-                &PbdSolver { iterations },
                 &[],
                 &mut ws,
             )

@@ -27,6 +27,7 @@ use bevy::math::Affine3A;
 use bevy_017::math::{Mat4, Vec3 as Vec3Silk};
 use bevy_017::platform::collections::HashMap;
 use bevy_cloth::model::{ClothModel, ClothState};
+use bevy_cloth::solver::Method;
 use bevy_cloth_report::perf::{Timing, scale_model, time_samples};
 use bevy_cloth::solver::implicit::{self, ImplicitSolver, ImplicitWorkspace};
 use bevy_cloth::solver::pbd::{self, PbdSolver, PbdWorkspace};
@@ -170,12 +171,12 @@ fn main() {
             iterations: ITERATIONS,
         };
         let pbd = ours(&model, |state| {
-            pbd::step(&model, state, &params, &config, &[], &mut pbd_ws).expect("valid step");
+            Method::step(&config, &model, state, &params, &[], &mut pbd_ws).expect("valid step");
         });
         let mut cheb_ws = ImplicitWorkspace::default();
         let config = ImplicitSolver::chebyshev(ITERATIONS, 0.995);
         let cheb = ours(&model, |state| {
-            implicit::step(&model, state, &params, &config, &[], &mut cheb_ws).expect("valid step");
+            Method::step(&config, &model, state, &params, &[], &mut cheb_ws).expect("valid step");
         });
         assert!(pbd.finite && cheb.finite, "bevy_cloth diverged at {n}²");
         let line = format!(

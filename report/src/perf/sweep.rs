@@ -9,10 +9,11 @@ use bevy::prelude::{Fixed, MinimalPlugins, Time, Transform, Virtual};
 use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
+use bevy_cloth::solver::Method;
 use bevy_cloth::solver::guard::GuardBounds;
 use bevy_cloth::solver::implicit::ImplicitSolver;
 use bevy_cloth::solver::linear::{
-    self, CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
+    CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
 };
 use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, SpringStiffness, StepParams};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
@@ -245,14 +246,14 @@ pub fn cg_parts(config: &PerfConfig) -> CgParts {
     let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = LinearWorkspace::default();
     for _ in 0..20 {
-        linear::step(&model, &mut start, &params, &cg, &[], &mut ws).expect("valid step");
+        Method::step(&cg, &model, &mut start, &params, &[], &mut ws).expect("valid step");
     }
     let mut state = start.clone();
     let mut iterations = 0;
     let step = time_samples(config.budget, config.min_samples, || {
         state.copy_from(&start);
         let t = Instant::now();
-        let report = linear::step(&model, &mut state, &params, &cg, &[], &mut ws);
+        let report = Method::step(&cg, &model, &mut state, &params, &[], &mut ws);
         let elapsed = t.elapsed().as_secs_f64();
         iterations = report.expect("valid step").iterations;
         elapsed

@@ -200,18 +200,11 @@ impl Method for LinearImplicitSolver {
         }
     }
 
-    fn iterations(&self) -> Option<u32> {
-        match self.solver {
-            LinearSolver::Cg(cg) => Some(cg.max_iterations),
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        match &mut self.solver {
+            LinearSolver::Cg(cg) => Some(&mut cg.max_iterations),
             LinearSolver::Direct => None,
         }
-    }
-
-    fn with_iterations(mut self, iterations: u32) -> Self {
-        if let LinearSolver::Cg(cg) = &mut self.solver {
-            cg.max_iterations = iterations;
-        }
-        self
     }
 
     fn validate(&self) -> Result<(), ParamError> {
@@ -226,15 +219,76 @@ impl Method for LinearImplicitSolver {
         Ok(())
     }
 
+    /// Advances `state` by one linearly implicit Euler step (see the module
+    /// docs). Reports solver iterations (0 for the direct solve) and the final
+    /// relative residual `‖b − Av⁺‖/‖b‖`.
     fn step(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
         params: &StepParams,
         spheres: &[PenaltySphere],
-        workspace: &mut LinearWorkspace,
+        ws: &mut LinearWorkspace,
     ) -> Result<StepReport, StepError> {
-        step(model, state, params, self, spheres, workspace)
+        let config = self;
+        params.validate()?;
+        config.validate()?;
+        check_state(model, state)?;
+        ws.prepare(model);
+        let pinned = model.pinned();
+        ws.damped.clear();
+        ws.damped.extend(
+            state.velocities.iter().enumerate().map(
+                |(i, &v)| {
+                    if pinned[i] { v } else { v * params.damping }
+                },
+            ),
+        );
+        let LinearWorkspace {
+            system,
+            cholesky,
+            solution,
+            scratch,
+            inv_diag,
+            memory,
+            damped,
+            ..
+        } = ws;
+        let system = system.as_mut().expect("prepared");
+        system.assemble(model, &state.positions, damped, params, config, spheres);
+        let n = system.dimension();
+        let result = if n == 0 {
+            Ok((0, 0.0))
+        } else {
+            match config.solver {
+                LinearSolver::Cg(cg) => {
+                    for (i, v) in damped.iter().enumerate() {
+                        if let Some(d) = system.dof(i) {
+                            solution[d..d + 3].copy_from_slice(&v.as_dvec3().to_array());
+                        }
+                    }
+                    cg::solve(system, &cg, solution, inv_diag, memory)
+                }
+                LinearSolver::Direct => solve_direct(system, cholesky, solution, scratch),
+            }
+        };
+        let (iterations, residual) = result.map_err(StepError::Solve)?;
+        let h = params.dt as f32;
+        for i in 0..state.positions.len() {
+            if let Some(d) = system.dof(i) {
+                let v = Vec3A::new(
+                    solution[d] as f32,
+                    solution[d + 1] as f32,
+                    solution[d + 2] as f32,
+                );
+                state.velocities[i] = v;
+                state.positions[i] += h * v;
+            }
+        }
+        Ok(StepReport {
+            iterations,
+            residual: Some(residual as f32),
+        })
     }
 }
 
@@ -293,77 +347,6 @@ impl LinearWorkspace {
             self.pattern_builds += 1;
         }
     }
-}
-
-/// Advances `state` by one linearly implicit Euler step (see the module
-/// docs). Reports solver iterations (0 for the direct solve) and the final
-/// relative residual `‖b − Av⁺‖/‖b‖`.
-pub fn step(
-    model: &ClothModel,
-    state: &mut ClothState,
-    params: &StepParams,
-    config: &LinearImplicitSolver,
-    spheres: &[PenaltySphere],
-    ws: &mut LinearWorkspace,
-) -> Result<StepReport, StepError> {
-    params.validate()?;
-    config.validate()?;
-    check_state(model, state)?;
-    ws.prepare(model);
-    let pinned = model.pinned();
-    ws.damped.clear();
-    ws.damped.extend(
-        state.velocities.iter().enumerate().map(
-            |(i, &v)| {
-                if pinned[i] { v } else { v * params.damping }
-            },
-        ),
-    );
-    let LinearWorkspace {
-        system,
-        cholesky,
-        solution,
-        scratch,
-        inv_diag,
-        memory,
-        damped,
-        ..
-    } = ws;
-    let system = system.as_mut().expect("prepared");
-    system.assemble(model, &state.positions, damped, params, config, spheres);
-    let n = system.dimension();
-    let result = if n == 0 {
-        Ok((0, 0.0))
-    } else {
-        match config.solver {
-            LinearSolver::Cg(cg) => {
-                for (i, v) in damped.iter().enumerate() {
-                    if let Some(d) = system.dof(i) {
-                        solution[d..d + 3].copy_from_slice(&v.as_dvec3().to_array());
-                    }
-                }
-                cg::solve(system, &cg, solution, inv_diag, memory)
-            }
-            LinearSolver::Direct => solve_direct(system, cholesky, solution, scratch),
-        }
-    };
-    let (iterations, residual) = result.map_err(StepError::Solve)?;
-    let h = params.dt as f32;
-    for i in 0..state.positions.len() {
-        if let Some(d) = system.dof(i) {
-            let v = Vec3A::new(
-                solution[d] as f32,
-                solution[d + 1] as f32,
-                solution[d + 2] as f32,
-            );
-            state.velocities[i] = v;
-            state.positions[i] += h * v;
-        }
-    }
-    Ok(StepReport {
-        iterations,
-        residual: Some(residual as f32),
-    })
 }
 
 fn solve_direct(

@@ -331,7 +331,7 @@ fn step_with(
 ) -> (ClothState, StepReport) {
     let mut state = start.clone();
     let mut ws = LinearWorkspace::default();
-    let report = step(model, &mut state, params, config, &[], &mut ws).unwrap();
+    let report = Method::step(config, model, &mut state, params, &[], &mut ws).unwrap();
     (state, report)
 }
 
@@ -346,7 +346,7 @@ fn cg_converges_to_the_direct_solution() {
         ..LinearImplicitSolver::default()
     };
     for _ in 0..20 {
-        step(&model, &mut start, &params, &direct_config, &[], &mut ws).unwrap();
+        Method::step(&direct_config, &model, &mut start, &params, &[], &mut ws).unwrap();
     }
     let (direct, report) = step_with(&model, &start, &params, &direct_config);
     assert!(report.residual.unwrap() < 1e-12, "{report:?}");
@@ -390,7 +390,7 @@ fn the_pattern_is_built_once_and_fixed_particles_never_move() {
             ..LinearImplicitSolver::default()
         };
         for _ in 0..50 {
-            step(&model, &mut state, &spec_params(), &config, &[], &mut ws).unwrap();
+            Method::step(&config, &model, &mut state, &spec_params(), &[], &mut ws).unwrap();
         }
     }
     assert_eq!(ws.pattern_builds(), 1);
@@ -404,11 +404,11 @@ fn the_pattern_is_built_once_and_fixed_particles_never_move() {
         .build()
         .unwrap();
     let mut other = rest(&repinned);
-    step(
+    Method::step(
+        &LinearImplicitSolver::default(),
         &repinned,
         &mut other,
         &spec_params(),
-        &LinearImplicitSolver::default(),
         &[],
         &mut ws,
     )
@@ -506,7 +506,7 @@ fn a_penalty_sphere_pushes_particles_out() {
         let mut ws = LinearWorkspace::default();
         let mut deepest = 0.0f32;
         for k in 0..600 {
-            step(&model, &mut state, &params, &config, &[sphere], &mut ws).unwrap();
+            Method::step(&config, &model, &mut state, &params, &[sphere], &mut ws).unwrap();
             if k > 300 {
                 for p in &state.positions {
                     deepest = deepest.max(sphere.radius - p.distance(sphere.center));
