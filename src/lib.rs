@@ -249,12 +249,13 @@ pub use ecs::{
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
-    SymplecticPlugin,
+    ProjectivePlugin, SymplecticPlugin,
 };
 pub use solver::exact::ExactSolver;
 pub use solver::implicit::{ImplicitSolver, Rho};
 pub use solver::linear::LinearImplicitSolver;
 pub use solver::pbd::PbdSolver;
+pub use solver::projective::ProjectiveSolver;
 pub use solver::symplectic::SymplecticSolver;
 
 /// Everything a game needs, in one import.
@@ -267,7 +268,7 @@ pub mod prelude {
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
-        SymplecticPlugin,
+        ProjectivePlugin, SymplecticPlugin,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
     pub use crate::solver::exact::ExactSolver;
@@ -278,6 +279,7 @@ pub mod prelude {
         SpringJacobian,
     };
     pub use crate::solver::pbd::PbdSolver;
+    pub use crate::solver::projective::ProjectiveSolver;
     pub use crate::solver::symplectic::SymplecticSolver;
     pub use crate::solver::{Method, ParamError, SpringStiffness, StepParams};
 }

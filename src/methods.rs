@@ -40,6 +40,7 @@ use crate::solver::exact::ExactSolver;
 use crate::solver::implicit::ImplicitSolver;
 use crate::solver::linear::{CgConfig, LinearImplicitSolver, SpringJacobian};
 use crate::solver::pbd::PbdSolver;
+use crate::solver::projective::{PD_ITERATIONS, ProjectiveSolver};
 use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{
     LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
@@ -156,6 +157,8 @@ method_table! {
     Symplectic(SymplecticSolver) => SymplecticPlugin;
     /// Linearly implicit Euler, sparse CG or LDLᵀ (the assignment).
     Linear(LinearImplicitSolver) => LinearImplicitPlugin;
+    /// Projective dynamics (local–global), Chebyshev-accelerated.
+    Projective(ProjectiveSolver) => ProjectivePlugin;
     /// Exact implicit Euler: Newton to a gradient tolerance (the reference).
     Exact(ExactSolver) => ExactPlugin;
 }
@@ -236,6 +239,10 @@ pub const PRESETS: &[Preset] = &[
         method: AnyMethod::Linear(
             LinearImplicitSolver::direct().with_springs(SpringJacobian::ClampCompression),
         ),
+    },
+    Preset {
+        label: "Projective dynamics (Chebyshev)",
+        method: AnyMethod::Projective(ProjectiveSolver::chebyshev(PD_ITERATIONS)),
     },
     Preset {
         label: "Exact implicit (Newton)",

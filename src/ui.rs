@@ -304,19 +304,11 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
     match method {
         AnyMethod::Implicit(i) => {
             iterations_ui(ui, &mut i.iterations, "iterations");
-            let mut on = i.chebyshev.is_some();
-            if ui.checkbox(&mut on, "Chebyshev acceleration").changed() {
-                i.chebyshev = on.then(Rho::default);
-            }
-            if let Some(rho) = &mut i.chebyshev {
-                let mut auto = *rho == Rho::Auto;
-                if ui.checkbox(&mut auto, "estimate rho each step").changed() {
-                    *rho = if auto { Rho::Auto } else { Rho::default() };
-                }
-                if let Rho::Fixed(r) = rho {
-                    ui.add(egui::Slider::new(r, 0.5..=0.9999).text("rho"));
-                }
-            }
+            chebyshev_ui(ui, &mut i.chebyshev);
+        }
+        AnyMethod::Projective(p) => {
+            iterations_ui(ui, &mut p.iterations, "local–global iterations");
+            chebyshev_ui(ui, &mut p.chebyshev);
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}
@@ -377,6 +369,22 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                         ui.selectable_value(&mut l.penalty, p, format!("{p:?}"));
                     }
                 });
+        }
+    }
+}
+
+fn chebyshev_ui(ui: &mut egui::Ui, chebyshev: &mut Option<Rho>) {
+    let mut on = chebyshev.is_some();
+    if ui.checkbox(&mut on, "Chebyshev acceleration").changed() {
+        *chebyshev = on.then(Rho::default);
+    }
+    if let Some(rho) = chebyshev {
+        let mut auto = *rho == Rho::Auto;
+        if ui.checkbox(&mut auto, "estimate rho each step").changed() {
+            *rho = if auto { Rho::Auto } else { Rho::default() };
+        }
+        if let Rho::Fixed(r) = rho {
+            ui.add(egui::Slider::new(r, 0.5..=0.9999).text("rho"));
         }
     }
 }

@@ -4,7 +4,8 @@
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::SparseColMatRef;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::{Conj, MatMut, Par, Side};
 
@@ -18,6 +19,10 @@ pub struct SparseCholesky {
     symbolic: Option<SymbolicCholesky<usize>>,
     factor: Vec<f64>,
     memory: Option<MemBuffer>,
+    /// Right-hand sides the memory is sized for.
+    columns: usize,
+    /// True once `factor` holds a numeric LLᵀ factorisation.
+    factored: bool,
 }
 
 impl SparseCholesky {
@@ -26,8 +31,13 @@ impl SparseCholesky {
         *self = Self::default();
     }
 
-    fn analyse(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<(), SolveError> {
-        if self.symbolic.is_none() {
+    fn analyse(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+        columns: usize,
+    ) -> Result<(), SolveError> {
+        let columns = columns.max(1);
+        if self.symbolic.is_none() || self.columns < columns {
             let sym = factorize_symbolic_cholesky(
                 a.symbolic(),
                 Side::Lower,
@@ -39,9 +49,10 @@ impl SparseCholesky {
             self.memory = Some(MemBuffer::new(StackReq::any_of(&[
                 sym.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
                 sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-                sym.solve_in_place_scratch::<f64>(1, Par::Seq),
+                sym.solve_in_place_scratch::<f64>(columns, Par::Seq),
             ])));
             self.symbolic = Some(sym);
+            self.columns = columns;
         }
         Ok(())
     }
@@ -72,7 +83,8 @@ impl SparseCholesky {
         rhs: &mut [f64],
         llt: bool,
     ) -> Result<(), SolveError> {
-        self.analyse(a)?;
+        self.analyse(a, 1)?;
+        self.factored = false;
         let n = rhs.len();
         let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
             return Err(SolveError::Factorization);
@@ -110,4 +122,60 @@ impl SparseCholesky {
             Err(SolveError::Factorization)
         }
     }
+
+    /// Factorises `A = LLᵀ` and keeps the factor for
+    /// [`solve_factored`](Self::solve_factored), with workspace for
+    /// `columns` right-hand sides. Fails with
+    /// [`SolveError::NotPositiveDefinite`] when `A` is not positive definite.
+    pub fn factorize_llt(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+        columns: usize,
+    ) -> Result<(), SolveError> {
+        self.factored = false;
+        self.analyse(a, columns)?;
+        let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
+            return Err(SolveError::Factorization);
+        };
+        sym.factorize_numeric_llt(
+            &mut self.factor,
+            a,
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(memory),
+            Default::default(),
+        )
+        .map_err(|_| SolveError::NotPositiveDefinite)?;
+        self.factored = true;
+        Ok(())
+    }
+
+    /// Solves `A X = rhs` in place with the factor of the last
+    /// [`factorize_llt`](Self::factorize_llt), for `rhs` holding `columns`
+    /// right-hand sides column after column (at most the number it was
+    /// factorised for). One forward and one back substitution.
+    pub fn solve_factored(&mut self, rhs: &mut [f64], columns: usize) -> Result<(), SolveError> {
+        let (Some(sym), Some(memory), true) =
+            (self.symbolic.as_ref(), self.memory.as_mut(), self.factored)
+        else {
+            return Err(SolveError::Factorization);
+        };
+        if columns == 0 || columns > self.columns || rhs.len() % columns != 0 {
+            return Err(SolveError::Factorization);
+        }
+        let rows = rhs.len() / columns;
+        LltRef::new(sym, &self.factor).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, rows, columns),
+            Par::Seq,
+            MemStack::new(memory),
+        );
+        if rhs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(SolveError::Factorization)
+        }
+    }
+
 }

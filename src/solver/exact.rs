@@ -28,7 +28,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::cholesky::SparseCholesky;
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
-use super::{Method, ParamError, StepError, StepParams, StepReport, check_state};
+use super::{Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -97,7 +97,7 @@ impl Method for ExactSolver {
 
     /// Advances `state` by one exact implicit-Euler step (see the module docs).
     /// The report's residual is the final relative gradient norm.
-    fn step(
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
@@ -106,9 +106,6 @@ impl Method for ExactSolver {
         ws: &mut ExactWorkspace,
     ) -> Result<StepReport, StepError> {
         let config = self;
-        params.validate()?;
-        config.validate()?;
-        check_state(model, state)?;
         let n = model.vertex_count();
         if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
             ws.system = Some(LinearSystem::new(model));

@@ -28,9 +28,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
-use super::{
-    LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport, check_state,
-};
+use super::{LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
 
@@ -137,7 +135,7 @@ impl Method for ImplicitSolver {
     /// blocks), and one over vertices, which gathers each vertex's terms over
     /// its adjacency and updates its position in the same loop. Both passes are
     /// split in fixed chunks, run in parallel for large cloths.
-    fn step(
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
@@ -146,9 +144,6 @@ impl Method for ImplicitSolver {
         ws: &mut ImplicitWorkspace,
     ) -> Result<StepReport, StepError> {
         let config = self;
-        params.validate()?;
-        config.validate()?;
-        check_state(model, state)?;
         let n = model.vertex_count();
         ws.prepare(n, config.chebyshev.is_some());
         let dt = params.dt as f32;

@@ -8,7 +8,7 @@
 
 use core::fmt::Debug;
 
-use super::{ParamError, StepError, StepParams, StepReport};
+use super::{ParamError, StepError, StepParams, StepReport, check_state};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -57,9 +57,26 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
     /// Checks the settings.
     fn validate(&self) -> Result<(), ParamError>;
 
-    /// Advances `state` by one step, with penalty `spheres` acting inside it.
-    /// On error the state is unchanged.
+    /// Advances `state` by one step, with penalty `spheres` acting inside it,
+    /// after checking the parameters, the settings and the state's size. On
+    /// error the state is unchanged.
     fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        workspace: &mut Self::Workspace,
+    ) -> Result<StepReport, StepError> {
+        params.validate()?;
+        self.validate()?;
+        check_state(model, state)?;
+        self.advance(model, state, params, spheres, workspace)
+    }
+
+    /// [`step`](Self::step) without its checks: what each method implements.
+    /// Callers use `step`.
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,

@@ -13,6 +13,7 @@
 //! | [`PbdSolver`](pbd::PbdSolver) | position-based dynamics, Jacobi strain limiting | [`pbd`] | lab part 2 |
 //! | [`SymplecticSolver`](symplectic::SymplecticSolver) | symplectic Euler (`A = M`) | [`symplectic`] | the assignment's first stage |
 //! | [`LinearImplicitSolver`](linear::LinearImplicitSolver) | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear`] | the assignment |
+//! | [`ProjectiveSolver`](projective::ProjectiveSolver) | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev-accelerated | [`projective`] | Liu et al. 2013, Wang 2015 |
 //! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search | [`exact`] | the reference |
 //!
 //! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
@@ -39,6 +40,7 @@ pub mod measures;
 pub mod method;
 pub mod params;
 pub mod pbd;
+pub mod projective;
 pub mod symplectic;
 
 pub use kernels::PARALLEL_MIN;

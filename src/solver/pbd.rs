@@ -22,7 +22,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::spring_scales;
-use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport, check_state};
+use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -74,7 +74,7 @@ impl Method for PbdSolver {
 
     /// Advances `state` by one PBD step (see the module docs). Stiffness is not
     /// used: strain limiting restores rest lengths directly.
-    fn step(
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
@@ -83,9 +83,6 @@ impl Method for PbdSolver {
         ws: &mut PbdWorkspace,
     ) -> Result<StepReport, StepError> {
         let config = self;
-        params.validate()?;
-        config.validate()?;
-        check_state(model, state)?;
         let n = model.vertex_count();
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();

@@ -14,7 +14,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{spring_terms, stiffness_coeffs};
-use super::{Method, ParamError, StepError, StepParams, StepReport, check_state};
+use super::{Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -38,7 +38,7 @@ impl Method for SymplecticSolver {
     }
 
     /// Advances `state` by one symplectic Euler step (see the module docs).
-    fn step(
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
@@ -46,8 +46,6 @@ impl Method for SymplecticSolver {
         spheres: &[PenaltySphere],
         ws: &mut SymplecticWorkspace,
     ) -> Result<StepReport, StepError> {
-        params.validate()?;
-        check_state(model, state)?;
         ws.terms
             .resize(model.topology().springs().len(), Vec3A::ZERO);
         // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).

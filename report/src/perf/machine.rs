@@ -122,7 +122,7 @@ pub fn work_per_iteration(method: &AnyMethod, model: &ClothModel) -> Option<(u32
         AnyMethod::Implicit(c) => c.iterations,
         AnyMethod::Pbd(c) => c.iterations,
         AnyMethod::Symplectic(_) => 1,
-        AnyMethod::Linear(_) | AnyMethod::Exact(_) => return None,
+        AnyMethod::Linear(_) | AnyMethod::Exact(_) | AnyMethod::Projective(_) => return None,
     };
     Some((iterations, iteration.0, iteration.1))
 }

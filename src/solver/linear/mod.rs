@@ -41,7 +41,7 @@ pub use assembly::LinearSystem;
 use assembly::pattern_key;
 
 use super::cholesky::SparseCholesky;
-use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport, check_state};
+use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -222,7 +222,7 @@ impl Method for LinearImplicitSolver {
     /// Advances `state` by one linearly implicit Euler step (see the module
     /// docs). Reports solver iterations (0 for the direct solve) and the final
     /// relative residual `‖b − Av⁺‖/‖b‖`.
-    fn step(
+    fn advance(
         &self,
         model: &ClothModel,
         state: &mut ClothState,
@@ -231,9 +231,6 @@ impl Method for LinearImplicitSolver {
         ws: &mut LinearWorkspace,
     ) -> Result<StepReport, StepError> {
         let config = self;
-        params.validate()?;
-        config.validate()?;
-        check_state(model, state)?;
         ws.prepare(model);
         let pinned = model.pinned();
         ws.damped.clear();
