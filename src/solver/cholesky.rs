@@ -177,5 +177,4 @@ impl SparseCholesky {
             Err(SolveError::Factorization)
         }
     }
-
 }

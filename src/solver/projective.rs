@@ -194,8 +194,11 @@ impl ProjectiveWorkspace {
         let springs = model.topology().springs();
         let stiffness = params.stiffness.as_array();
         self.k.clear();
-        self.k
-            .extend(springs.iter().map(|s| f64::from(stiffness[s.kind as usize])));
+        self.k.extend(
+            springs
+                .iter()
+                .map(|s| f64::from(stiffness[s.kind as usize])),
+        );
         self.coeffs.clear();
         self.coeffs
             .extend(springs.iter().map(|s| [0.0, -s.rest_length]));
@@ -410,7 +413,8 @@ impl Method for ProjectiveSolver {
         for &i in &ws.free {
             let i = i as usize;
             let mass = f64::from(masses[i]);
-            let mut g = mass * inv_h2 * (x[i].as_dvec3() - ws.x_tilde[i].as_dvec3()) - mass * gravity;
+            let mut g =
+                mass * inv_h2 * (x[i].as_dvec3() - ws.x_tilde[i].as_dvec3()) - mass * gravity;
             let (starts, ends) = adjacency.by_side(i);
             for &e in starts {
                 let s = springs[e as usize];
@@ -438,5 +442,183 @@ impl Method for ProjectiveSolver {
             iterations: self.iterations,
             residual: Some(residual.sqrt() as f32),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::math::{Affine3A, Vec3};
+
+    use super::*;
+    use crate::model::ClothBuilder;
+    use crate::solver::exact::{ExactSolver, ExactWorkspace};
+    use crate::solver::{SpringStiffness, step_error};
+
+    fn lab() -> ClothModel {
+        ClothBuilder::lab().build().unwrap()
+    }
+
+    /// The exact trajectory after `steps` steps (a swinging, bent sheet).
+    fn swinging(model: &ClothModel, params: &StepParams, steps: usize) -> ClothState {
+        let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+        let mut ws = ExactWorkspace::default();
+        for _ in 0..steps {
+            ExactSolver::REFERENCE
+                .step(model, &mut state, params, &[], &mut ws)
+                .unwrap();
+        }
+        state
+    }
+
+    fn error_against_exact(
+        model: &ClothModel,
+        params: &StepParams,
+        start: &ClothState,
+        pd: ProjectiveSolver,
+    ) -> f64 {
+        let mut exact = start.clone();
+        ExactSolver::REFERENCE
+            .step(
+                model,
+                &mut exact,
+                params,
+                &[],
+                &mut ExactWorkspace::default(),
+            )
+            .unwrap();
+        let mut state = start.clone();
+        pd.step(
+            model,
+            &mut state,
+            params,
+            &[],
+            &mut ProjectiveWorkspace::default(),
+        )
+        .unwrap();
+        step_error(&state.positions, &exact.positions, &start.positions)
+    }
+
+    #[test]
+    fn converges_to_the_exact_implicit_step() {
+        let model = lab();
+        let params = StepParams::LAB;
+        let start = swinging(&model, &params, 10);
+        let few = error_against_exact(&model, &params, &start, ProjectiveSolver::new(4));
+        let many = error_against_exact(&model, &params, &start, ProjectiveSolver::new(400));
+        assert!(many < 1e-3 && many < few / 10.0, "{few} → {many}");
+        let accelerated =
+            error_against_exact(&model, &params, &start, ProjectiveSolver::chebyshev(40));
+        let plain = error_against_exact(&model, &params, &start, ProjectiveSolver::new(40));
+        assert!(
+            accelerated < plain,
+            "Chebyshev {accelerated} vs plain {plain}"
+        );
+    }
+
+    #[test]
+    fn is_right_on_stiff_cloth_where_it_falls_as_the_exact_method_does() {
+        // k = 1e6 at the lab's step: Jacobi locks here; PD does not.
+        let model = lab();
+        let params = StepParams {
+            stiffness: SpringStiffness::uniform(1e6),
+            ..StepParams::LAB
+        };
+        let start = swinging(&model, &params, 5);
+        let e = error_against_exact(&model, &params, &start, ProjectiveSolver::default());
+        assert!(e < 0.1, "{e}");
+    }
+
+    #[test]
+    fn factorises_once_and_again_only_when_k_h_or_pins_change() {
+        let model = lab();
+        let mut params = StepParams::LAB;
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = ProjectiveWorkspace::default();
+        let pd = ProjectiveSolver::default();
+        for _ in 0..5 {
+            pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
+        }
+        assert_eq!(ws.factorizations(), 1);
+        params.stiffness = SpringStiffness::uniform(9000.0);
+        pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
+        assert_eq!(ws.factorizations(), 2);
+        params.dt = 0.02;
+        pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
+        assert_eq!(ws.factorizations(), 3);
+        let unpinned = ClothBuilder::lab().with_pins([0]).build().unwrap();
+        let mut s = ClothState::at_rest(&unpinned, &Affine3A::IDENTITY);
+        pd.step(&unpinned, &mut s, &params, &[], &mut ws).unwrap();
+        assert_eq!(ws.factorizations(), 4);
+        // Moving a pin is a right-hand side change only.
+        state.positions[0] += Vec3A::new(0.5, 0.0, 0.0);
+        pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
+        assert_eq!(ws.factorizations(), 5);
+        pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
+        assert_eq!(ws.factorizations(), 5);
+        assert_eq!(state.positions[0].x, 5.5, "pins never move");
+    }
+
+    #[test]
+    fn edge_cases_are_typed_errors_or_plain_physics() {
+        let pd = ProjectiveSolver::default();
+        let model = lab();
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = ProjectiveWorkspace::default();
+        // k = 0 is refused like every method refuses it; the state is kept.
+        let zero = StepParams {
+            stiffness: SpringStiffness::uniform(0.0),
+            ..StepParams::LAB
+        };
+        let before = state.clone();
+        assert_eq!(
+            pd.step(&model, &mut state, &zero, &[], &mut ws),
+            Err(StepError::Params(ParamError::Stiffness(0.0)))
+        );
+        assert_eq!(state, before);
+        assert_eq!(
+            ProjectiveSolver::new(0).step(&model, &mut state, &StepParams::LAB, &[], &mut ws),
+            Err(StepError::Params(ParamError::Iterations))
+        );
+        // h → 0: the mass term dominates, nothing moves measurably.
+        let tiny = StepParams {
+            dt: 1e-9,
+            ..StepParams::LAB
+        };
+        pd.step(&model, &mut state, &tiny, &[], &mut ws).unwrap();
+        assert!(state.is_finite());
+        assert!(state.positions[220].distance(before.positions[220]) < 1e-6);
+        // No springs: a cloth without triangles cannot be built (a typed
+        // error), so PD never sees an empty Laplacian.
+        let loose =
+            ClothBuilder::from_triangles(vec![Vec3::ZERO, Vec3::X, Vec3::Z], Vec::new()).build();
+        assert!(loose.is_err(), "{loose:?}");
+        // Every pin removed: the whole sheet falls, finite.
+        let free = ClothBuilder::lab().with_pins([]).build().unwrap();
+        let mut s = ClothState::at_rest(&free, &Affine3A::IDENTITY);
+        let mut ws = ProjectiveWorkspace::default();
+        for _ in 0..30 {
+            pd.step(&free, &mut s, &StepParams::LAB, &[], &mut ws)
+                .unwrap();
+        }
+        assert!(s.is_finite() && s.positions.iter().all(|p| p.y < -1.0));
+    }
+
+    #[test]
+    fn is_deterministic() {
+        let model = lab();
+        let run = || {
+            let mut s = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+            let mut ws = ProjectiveWorkspace::default();
+            for _ in 0..20 {
+                ProjectiveSolver::default()
+                    .step(&model, &mut s, &StepParams::LAB, &[], &mut ws)
+                    .unwrap();
+            }
+            s.positions
+                .iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(run(), run());
     }
 }

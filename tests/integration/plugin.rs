@@ -81,8 +81,8 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     assert_eq!(fixed_system_count(&mut app), 5);
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
-    // Core (3) + five methods + sphere gathering and projection + counter.
-    assert_eq!(fixed_system_count(&mut full), 11);
+    // Core (3) + six methods + sphere gathering and projection + counter.
+    assert_eq!(fixed_system_count(&mut full), 12);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
@@ -412,4 +412,43 @@ fn teleporting_the_cloth_entity_and_the_sphere_never_lets_a_nan_out() {
             assert_eq!(x[0], Vec3A::new(105.0, 0.0, 5.0), "{}", m.name());
         }
     }
+}
+
+#[test]
+fn projective_dynamics_refactorises_when_k_changes_live_and_follows_moving_pins() {
+    use bevy_cloth::ClothWorkspace;
+    use bevy_cloth::solver::projective::ProjectiveWorkspace;
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, ProjectiveSolver::default());
+    run_steps(&mut app, 5);
+    let factorizations = |app: &App| {
+        app.world()
+            .get::<ClothWorkspace<ProjectiveWorkspace>>(cloth)
+            .unwrap()
+            .solver
+            .factorizations()
+    };
+    assert_eq!(factorizations(&app), 1);
+    assert_eq!(stats(&app, cloth).method, "pd");
+    // Moving the entity moves the pins: no refactorisation, pins exact.
+    app.world_mut()
+        .get_mut::<Transform>(cloth)
+        .unwrap()
+        .translation
+        .x += 1.0;
+    run_steps(&mut app, 2);
+    assert_eq!(factorizations(&app), 1);
+    assert_eq!(positions(&app, cloth)[0], Vec3A::new(6.0, 0.0, 5.0));
+    // Stiffer springs through ClothParams: the next step refactorises and
+    // the sheet stretches less than before.
+    let soft = stats(&app, cloth).max_stretch;
+    app.world_mut()
+        .get_mut::<ClothParams>(cloth)
+        .unwrap()
+        .stiffness = SpringStiffness::uniform(1e6);
+    run_steps(&mut app, 30);
+    assert_eq!(factorizations(&app), 2);
+    let s = stats(&app, cloth);
+    assert!(s.is_running(), "{:?}", s.status);
+    assert!(s.max_stretch < soft / 5.0, "{} vs {soft}", s.max_stretch);
 }
