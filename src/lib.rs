@@ -82,6 +82,7 @@
 //! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
+//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev-accelerated, factorised once | Liu et al. 2013, Wang 2015 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search | the reference | [`solver::exact`] |
 //!
 //! ## Collision
@@ -183,6 +184,9 @@
 //!             symplectic:        v ← damping·v + h·M⁻¹f(x); x ← x + h·v
 //!             linear implicit:   fill A = M − h²K, b = M·damping·v + h·f (pattern reused)
 //!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
+//!             pd:                x = x̃; K times: d_e = L_e(x_a − x_b)/‖x_a − x_b‖ per spring;
+//!                                solve (M/h² + Σk AᵀA) x = M/h² x̃ + Mg + Σk Aᵀd (factor
+//!                                kept; Chebyshev blend); v = (x − x₀)/dt
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
 //!             (penalty spheres act inside the step: forces, and stiffness in A)
@@ -293,6 +297,7 @@ pub mod prelude {
 /// | [`PbdPlugin`] | Steps cloths with a [`PbdSolver`] (position-based, strain limiting). |
 /// | [`SymplecticPlugin`] | Steps cloths with a [`SymplecticSolver`] (symplectic Euler). |
 /// | [`LinearImplicitPlugin`] | Steps cloths with a [`LinearImplicitSolver`] (sparse CG or LDLᵀ). |
+/// | [`ProjectivePlugin`] | Steps cloths with a [`ProjectiveSolver`] (projective dynamics). |
 /// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 ///

@@ -25,11 +25,10 @@
 use core::any::{Any, TypeId};
 
 use bevy::app::PluginGroupBuilder;
-use bevy::ecs::bundle::Bundle;
 use bevy::ecs::component::{Component, Mutable, StorageType};
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
-use bevy::ecs::world::{EntityRef, EntityRefExcept, EntityWorldMut};
+use bevy::ecs::world::EntityWorldMut;
 use bevy::prelude::EntityCommands;
 use thiserror::Error;
 
@@ -131,12 +130,20 @@ macro_rules! method_table {
                 match self { $( Self::$variant(m) => { entity.insert(m); } )* }
             }
 
-            /// The method component `entity` carries, if any.
-            pub fn of(entity: &impl ComponentSource) -> Option<Self> {
-                $( if let Some(m) = entity.component::<$ty>() { return Some(Self::$variant(*m)); } )*
+            /// The method of a query item of [`AnyMethodData`], if the
+            /// entity has one.
+            #[allow(non_snake_case)]
+            pub fn from_item(item: ( $( Option<&$ty>, )* )) -> Option<Self> {
+                let ( $( $variant, )* ) = item;
+                $( if let Some(m) = $variant { return Some(Self::$variant(*m)); } )*
                 None
             }
         }
+
+        /// Query data that reads whichever method component an entity has
+        /// ([`AnyMethod::from_item`]); read-only, so it never conflicts with
+        /// queries of the cloth's other components.
+        pub type AnyMethodData = ( $( Option<&'static $ty>, )* );
 
         /// Adds every method's plugin to `group`.
         pub(crate) fn add_method_plugins(
@@ -161,26 +168,6 @@ method_table! {
     Projective(ProjectiveSolver) => ProjectivePlugin;
     /// Exact implicit Euler: Newton to a gradient tolerance (the reference).
     Exact(ExactSolver) => ExactPlugin;
-}
-
-/// Read access to an entity's components ([`EntityRef`], or an
-/// [`EntityRefExcept`] that leaves some components to other queries), for
-/// [`AnyMethod::of`].
-pub trait ComponentSource {
-    /// The entity's component `T`, if it has one.
-    fn component<T: Component>(&self) -> Option<&T>;
-}
-
-impl ComponentSource for EntityRef<'_> {
-    fn component<T: Component>(&self) -> Option<&T> {
-        self.get::<T>()
-    }
-}
-
-impl<B: Bundle> ComponentSource for EntityRefExcept<'_, '_, B> {
-    fn component<T: Component>(&self) -> Option<&T> {
-        self.get::<T>()
-    }
 }
 
 /// A named setting of a method: what the panel lists and `--method NAME`

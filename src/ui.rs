@@ -12,13 +12,11 @@ use std::collections::VecDeque;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
-use bevy::ecs::world::EntityRefExcept;
-
 use crate::ecs::{
     Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, SphereCollider,
     SphereResponse,
 };
-use crate::methods::{AnyMethod, PRESETS};
+use crate::methods::{AnyMethod, AnyMethodData, PRESETS};
 use crate::model::{ClothBuildError, ClothModel};
 use crate::solver::implicit::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
@@ -120,20 +118,6 @@ type ClothItem = (
     Option<&'static Mesh3d>,
 );
 
-/// Read access to every other component of a cloth: its method.
-type MethodRef<'w, 's> = EntityRefExcept<
-    'w,
-    's,
-    (
-        Cloth,
-        ClothParams,
-        ClothStats,
-        ClothResolution,
-        Mesh3d,
-        SphereCollider,
-    ),
->;
-
 #[allow(clippy::too_many_arguments)]
 fn inspector_panel(
     mut contexts: EguiContexts,
@@ -142,7 +126,7 @@ fn inspector_panel(
     mut fixed: ResMut<Time<Fixed>>,
     methods: Res<ClothMethods>,
     mut cloths: Query<ClothItem>,
-    method_of: Query<MethodRef>,
+    method_of: Query<AnyMethodData>,
     mut colliders: Query<(Entity, &mut SphereCollider)>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut commands: Commands,
@@ -217,7 +201,7 @@ fn inspector_panel(
                         return;
                     };
                     ui.separator();
-                    let current = method_of.get(entity).ok().and_then(|e| AnyMethod::of(&e));
+                    let current = method_of.get(entity).ok().and_then(AnyMethod::from_item);
                     method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();
                     params_ui(ui, &mut params);
@@ -515,5 +499,19 @@ fn colliders_ui(ui: &mut egui::Ui, colliders: &mut Query<(Entity, &mut SphereCol
         if *c != before {
             collider.set_changed();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_panel_system_has_no_conflicting_access() {
+        // Bevy checks a system's parameters for conflicts when it is
+        // initialised (error B0001); the lab found one at run time once.
+        let mut world = World::new();
+        let mut system = IntoSystem::<(), Result, _>::into_system(inspector_panel);
+        system.initialize(&mut world);
     }
 }
