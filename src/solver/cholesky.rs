@@ -161,7 +161,7 @@ impl SparseCholesky {
         else {
             return Err(SolveError::Factorization);
         };
-        if columns == 0 || columns > self.columns || rhs.len() % columns != 0 {
+        if columns == 0 || columns > self.columns || !rhs.len().is_multiple_of(columns) {
             return Err(SolveError::Factorization);
         }
         let rows = rhs.len() / columns;

@@ -179,12 +179,10 @@ impl ProjectiveWorkspace {
             return Ok(());
         }
         self.key = None;
-        let n = model.vertex_count();
-        let pinned = model.pinned();
         self.dof_of.clear();
         self.free.clear();
-        for i in 0..n {
-            if pinned[i] {
+        for (i, &pinned) in model.pinned().iter().enumerate() {
+            if pinned {
                 self.dof_of.push(PINNED);
             } else {
                 self.dof_of.push(self.free.len() as u32);
