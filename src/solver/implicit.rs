@@ -114,15 +114,7 @@ impl Method for ImplicitSolver {
     }
 
     fn validate(&self) -> Result<(), ParamError> {
-        if self.iterations == 0 {
-            return Err(ParamError::Iterations);
-        }
-        if let Some(Rho::Fixed(rho)) = self.chebyshev
-            && !(rho > 0.0 && rho < 1.0)
-        {
-            return Err(ParamError::Rho(rho));
-        }
-        Ok(())
+        validate_chebyshev(self.iterations, self.chebyshev)
     }
 
     /// Advances `state` by one implicit-Euler step (see the module docs).
@@ -233,11 +225,7 @@ impl Method for ImplicitSolver {
                     if kind == Rho::Auto && k == delay {
                         rho = rho_from_update_norms(&ws.update_norms);
                     }
-                    omega = match k.checked_sub(delay) {
-                        None | Some(0) => 1.0,
-                        Some(1) => 2.0 / (2.0 - rho * rho),
-                        _ => 4.0 / (4.0 - rho * rho * omega),
-                    };
+                    omega = chebyshev_omega(k, delay, rho, omega);
                     // Each chunk updates its vertices and the previous iterate,
                     // and sums its squared update norms; the sums are added in
                     // chunk order, so the total is the same on any thread count.
@@ -419,6 +407,34 @@ impl<'a> VertexPass<'a> {
             inv_diag = 1.0 / diag;
         }
         (g, inv_diag)
+    }
+}
+
+/// Checks an iteration count and a Chebyshev setting (shared by every
+/// Chebyshev-accelerated method).
+pub(crate) fn validate_chebyshev(
+    iterations: u32,
+    chebyshev: Option<Rho>,
+) -> Result<(), ParamError> {
+    if iterations == 0 {
+        return Err(ParamError::Iterations);
+    }
+    if let Some(Rho::Fixed(rho)) = chebyshev
+        && !(rho > 0.0 && rho < 1.0)
+    {
+        return Err(ParamError::Rho(rho));
+    }
+    Ok(())
+}
+
+/// Chebyshev's weight for iteration `k` when acceleration starts after
+/// `delay` plain iterations: `ω₁ = 1`, `ω₂ = 2/(2 − ρ²)`,
+/// `ω_{k+1} = 4/(4 − ρ²ω_k)` (Wang 2015), from the previous `omega`.
+pub(crate) fn chebyshev_omega(k: u32, delay: u32, rho: f32, omega: f32) -> f32 {
+    match k.checked_sub(delay) {
+        None | Some(0) => 1.0,
+        Some(1) => 2.0 / (2.0 - rho * rho),
+        _ => 4.0 / (4.0 - rho * rho * omega),
     }
 }
 

@@ -43,7 +43,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::SparseCholesky;
-use super::implicit::{Rho, rho_from_update_norms};
+use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::spring_scales;
 use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
@@ -298,15 +298,7 @@ impl Method for ProjectiveSolver {
     }
 
     fn validate(&self) -> Result<(), ParamError> {
-        if self.iterations == 0 {
-            return Err(ParamError::Iterations);
-        }
-        if let Some(Rho::Fixed(rho)) = self.chebyshev
-            && !(rho > 0.0 && rho < 1.0)
-        {
-            return Err(ParamError::Rho(rho));
-        }
-        Ok(())
+        validate_chebyshev(self.iterations, self.chebyshev)
     }
 
     /// Advances `state` by one projective-dynamics step (see the module
@@ -373,11 +365,7 @@ impl Method for ProjectiveSolver {
             if k == delay && chebyshev == Some(Rho::Auto) {
                 rho = rho_from_update_norms(&ws.update_norms);
             }
-            omega = match k.checked_sub(delay) {
-                None | Some(0) => 1.0,
-                Some(1) => 2.0 / (2.0 - rho * rho),
-                _ => 4.0 / (4.0 - rho * rho * omega),
-            };
+            omega = chebyshev_omega(k, delay, rho, omega);
             let measure = chebyshev == Some(Rho::Auto) && k < delay;
             let mut update = 0.0f64;
             for (f, &i) in ws.free.iter().enumerate() {
