@@ -115,6 +115,13 @@
 //! ## Stability
 //! - [`ClothGuard`]: the divergence guard's bounds and policy per cloth
 //!   ([`solver::guard`]); [`ClothDiverged`] reports what it did.
+//! - Convergence: every step of Jacobi, Chebyshev and projective dynamics
+//!   estimates its distance from the exact implicit-Euler step
+//!   ([`solver::StepReport::relative_error`], [`ClothStats::converged`]); a
+//!   cloth whose step ends far from it gets [`ClothNotConverged`] once.
+//! - Mistakes are typed, not silent: invalid parameters, settings or state
+//!   are [`ClothStatus::Invalid`] with the [`solver::StepError`]; a cloth whose
+//!   method has no plugin (or that has no method) is [`ClothStatus::NoMethod`].
 //! - The stability map (crate `bevy_cloth_report`): stiff and extreme
 //!   scenarios classified against the exact method, and symplectic Euler's
 //!   step limit `2/ω_max`.
@@ -194,11 +201,18 @@
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)
 //! Collide:  for each cloth, each projection sphere: move vertices inside to the surface
-//! SyncOut:  for each cloth: the guard's check again after collision (restore, stop);
-//!           send ClothDiverged for each rejected step; else record max stretch
-//!           and energy in ClothStats
+//! SyncOut:  for each cloth: no method stepped it? status NoMethod (warn once);
+//!           the guard's check again after collision (restore, stop);
+//!           send ClothDiverged for each rejected step and ClothNotConverged for
+//!           the first unconverged one; record max stretch and energy in ClothStats
 //! Last:     (user hook)
+//!
+//! PostUpdate (every frame, after transform propagation, set ClothFollowSystems):
+//!           pinned vertices follow their entity's transform as it is now
 //! ```
+//!
+//! When a cloth is inserted, a component hook places its rest shape at its
+//! entity's transform at once, so its state is never empty.
 //!
 //! Pinned vertices are never moved by a solver or a collider. Positions are
 //! world-space `f32` (`Vec3A`).
@@ -208,7 +222,17 @@
 //! **Why does my cloth not move?** It needs a method component and that
 //! method's plugin, and the schedule must run: `FixedUpdate` runs once
 //! `Time<Fixed>` has accumulated a step. Check [`ClothStats::status`]: a
-//! cloth with invalid parameters is skipped with a warning.
+//! cloth with invalid parameters is `Invalid` (with the typed error), one
+//! whose method has no plugin is `NoMethod`. If it is `Running` but hangs in
+//! the air, look at [`ClothStats::converged`]: a stiff cloth "locks" when its
+//! iterations do not converge.
+//!
+//! **Where do I move a pinned cloth, or a collider?** Anywhere: pins follow
+//! their entity at every fixed step (`SyncIn`) and again after `Update`
+//! (`ClothFollowSystems`, in `PostUpdate`), so the frame shows the pins where
+//! the entity is. For the physics to see a move in the same fixed step,
+//! move it in `FixedUpdate` before [`ClothSystems::SyncIn`] (for example in
+//! [`ClothSystems::First`]).
 //!
 //! **Which time step?** The schedule's: set `Time::<Fixed>::from_seconds(0.0333)`
 //! for the lab's.
@@ -249,10 +273,10 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothGuard, ClothMethod, ClothMethods,
-    ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace,
-    DivergenceReason, GuardAction, MethodPlugin, SphereCollider, SphereCollisionPlugin,
-    SphereResponse,
+    Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard,
+    ClothMethod, ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats,
+    ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, GuardAction, MethodPlugin,
+    SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -269,15 +293,16 @@ pub use solver::symplectic::SymplecticSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        Cloth, ClothCorePlugin, ClothDiverged, ClothGuard, ClothParams, ClothSimulation,
-        ClothStats, ClothStatus, ClothSystems, DivergenceReason, GuardAction, SphereCollider,
-        SphereCollisionPlugin, SphereResponse,
+        Cloth, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged,
+        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, DivergenceReason,
+        GuardAction, SphereCollider, SphereCollisionPlugin, SphereResponse,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
         ProjectivePlugin, SymplecticPlugin,
     };
     pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
+    pub use crate::solver::StepError;
     pub use crate::solver::exact::ExactSolver;
     pub use crate::solver::guard::{GuardBounds, GuardPolicy};
     pub use crate::solver::implicit::{ImplicitSolver, Rho};

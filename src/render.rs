@@ -29,7 +29,8 @@ impl Plugin for ClothRenderPlugin {
             PostUpdate,
             (no_culling_for_cloths, write_cloth_meshes)
                 .chain()
-                .after(TransformSystems::Propagate),
+                .after(TransformSystems::Propagate)
+                .after(crate::ecs::ClothFollowSystems),
         );
     }
 }

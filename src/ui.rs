@@ -426,6 +426,17 @@ fn stats_ui(ui: &mut egui::Ui, stats: &ClothStats, history: &VecDeque<f32>) {
         stats.contacts
     ));
     ui.label(format!("energy: {:.3e}", stats.energy));
+    if let Some(error) = stats.relative_error {
+        let text = format!("step error: {:.1} % of its motion", 100.0 * error);
+        if stats.converged {
+            ui.label(text);
+        } else {
+            ui.colored_label(
+                egui::Color32::YELLOW,
+                format!("{text}: not converged (raise iterations, or use pd)"),
+            );
+        }
+    }
     if stats.retried_steps > 0 {
         ui.label(format!(
             "guard: {} steps retried, now {} substeps per step",

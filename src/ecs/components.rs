@@ -2,20 +2,26 @@
 
 use core::time::Duration;
 
+use bevy::ecs::lifecycle::HookContext;
+use bevy::ecs::world::DeferredWorld;
 use bevy::prelude::*;
 
 use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
 use crate::solver::guard::{DivergenceReason, GuardBounds, GuardMemory, GuardPolicy};
-use crate::solver::{SpringStiffness, StepParams};
+use crate::solver::{CONVERGENCE_TOLERANCE, ParamError, SpringStiffness, StepError, StepParams};
 
 /// A simulated cloth: its model (topology, masses, pins) and its state
 /// (world-space positions and velocities).
 ///
 /// Spawn it with a method component ([`ImplicitSolver`](crate::ImplicitSolver),
-/// [`PbdSolver`](crate::PbdSolver)) and a [`Transform`]: on its first step the
-/// rest shape is placed by the entity's global transform, and from then on
-/// the pinned vertices follow that transform while the others are simulated
-/// in world space. [`ClothParams`] and [`ClothStats`] are added automatically.
+/// [`PbdSolver`](crate::PbdSolver)) and a [`Transform`]: the moment it is
+/// inserted, its rest shape is placed by the entity's global transform
+/// (computed from the `Transform` hierarchy), so [`positions`](Self::positions)
+/// is never empty. From then on the pinned vertices follow that transform
+/// while the others are simulated in world space. If the transform changes
+/// before the first fixed step, the cloth is placed again there.
+/// [`ClothParams`], [`ClothStats`] and [`ClothGuard`] are added
+/// automatically.
 ///
 /// ```
 /// use bevy::prelude::*;
@@ -30,6 +36,7 @@ use crate::solver::{SpringStiffness, StepParams};
 #[derive(Component, Reflect, Clone, Debug, Default)]
 #[reflect(Component, Default, Debug)]
 #[require(ClothParams, ClothStats, ClothGuard, Transform)]
+#[component(on_insert = place_on_insert)]
 pub struct Cloth {
     #[reflect(ignore)]
     pub(crate) model: ClothModel,
@@ -43,6 +50,38 @@ pub struct Cloth {
     pub(crate) event: Option<(DivergenceReason, GuardAction)>,
     /// Halvings the guard currently applies to this cloth's steps.
     pub(crate) guard_memory: GuardMemory,
+    /// Where the rest shape was placed, until the first fixed step (which
+    /// places it again if the entity has moved since).
+    #[reflect(ignore)]
+    pub(crate) placed_at: Option<bevy::math::Affine3A>,
+    /// Set by a method's step system each fixed step; a cloth no method
+    /// claims has no stepping method ([`ClothStatus::NoMethod`]).
+    pub(crate) claimed: bool,
+    /// Set once a [`ClothNotConverged`](super::ClothNotConverged) message was
+    /// sent; cleared when the method or its parameters change.
+    pub(crate) convergence_reported: bool,
+    /// Set by a step that did not converge; sent as a message in `SyncOut`.
+    #[reflect(ignore)]
+    pub(crate) not_converged: Option<f32>,
+}
+
+/// Places a cloth's rest shape at its entity's global transform as soon as the
+/// component is inserted, so its state is usable at once.
+fn place_on_insert(mut world: DeferredWorld, context: HookContext) {
+    let entity = context.entity;
+    let mut affine = bevy::math::Affine3A::IDENTITY;
+    let mut current = Some(entity);
+    // Walk the hierarchy as `TransformHelper` does (at most a few levels).
+    while let Some(e) = current {
+        if let Some(t) = world.get::<Transform>(e) {
+            affine = t.compute_affine() * affine;
+        }
+        current = world.get::<ChildOf>(e).map(ChildOf::parent);
+    }
+    if let Some(mut cloth) = world.get_mut::<Cloth>(entity) {
+        cloth.place(&affine);
+        cloth.placed_at = Some(affine);
+    }
 }
 
 impl Cloth {
@@ -63,7 +102,8 @@ impl Cloth {
         &self.model
     }
 
-    /// The current state. Empty until the cloth's first fixed step.
+    /// The current state: the rest shape at the entity's transform from the
+    /// moment the component is inserted, then the simulated one.
     #[inline]
     pub fn state(&self) -> &ClothState {
         &self.state
@@ -76,7 +116,8 @@ impl Cloth {
         &mut self.state
     }
 
-    /// World-space vertex positions (empty before the first fixed step).
+    /// World-space vertex positions (the placed rest shape until the first
+    /// fixed step).
     #[inline]
     pub fn positions(&self) -> &[Vec3A] {
         &self.state.positions
@@ -89,10 +130,17 @@ impl Cloth {
     }
 
     /// Puts the cloth back to its rest shape at its entity's transform on the
-    /// next fixed step.
+    /// next fixed step (until then the state is unchanged).
     pub fn reset(&mut self) {
         self.initialized = false;
         self.guard_memory = GuardMemory::default();
+    }
+
+    /// The rest shape at `affine`, at rest.
+    pub(crate) fn place(&mut self, affine: &bevy::math::Affine3A) {
+        self.state = ClothState::at_rest(&self.model, affine);
+        self.last_good.copy_from(&self.state);
+        self.initialized = true;
     }
 }
 
@@ -142,6 +190,16 @@ impl ClothParams {
         }
     }
 
+    /// Checks what the ECS layer adds to [`StepParams`]: the particle radius
+    /// must be finite and non-negative. (The method checks the rest when it
+    /// steps, each parameter it uses.)
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if !(self.particle_radius.is_finite() && self.particle_radius >= 0.0) {
+            return Err(ParamError::ParticleRadius(self.particle_radius));
+        }
+        Ok(())
+    }
+
     /// These parameters with one stiffness for every spring kind.
     pub fn with_stiffness(mut self, k: f32) -> Self {
         self.stiffness = SpringStiffness::uniform(k);
@@ -177,13 +235,32 @@ impl ClothParams {
 /// that fails too, the cloth is stopped at its last good state
 /// ([`ClothStatus::Diverged`]). Either way a
 /// [`ClothDiverged`](super::ClothDiverged) message names it.
-#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+///
+/// It also watches convergence: a step of an iterative method whose
+/// [`relative_error`](crate::solver::StepReport::relative_error) exceeds
+/// `convergence_tolerance` is kept (it is finite and inside the bounds), but
+/// marks the cloth [`ClothStats::converged`]` = false` and sends
+/// [`ClothNotConverged`](super::ClothNotConverged) once.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct ClothGuard {
     /// What a state must satisfy after a step.
     pub bounds: GuardBounds,
     /// What to do with a step that fails.
     pub policy: GuardPolicy,
+    /// The relative error above which a step is not converged (default
+    /// [`CONVERGENCE_TOLERANCE`], 0.2; `f32::INFINITY` turns the check off).
+    pub convergence_tolerance: f32,
+}
+
+impl Default for ClothGuard {
+    fn default() -> Self {
+        Self {
+            bounds: GuardBounds::default(),
+            policy: GuardPolicy::default(),
+            convergence_tolerance: CONVERGENCE_TOLERANCE,
+        }
+    }
 }
 
 impl ClothGuard {
@@ -209,6 +286,20 @@ impl ClothGuard {
         self.bounds = bounds;
         self
     }
+
+    /// This guard with another convergence tolerance.
+    pub fn with_convergence_tolerance(mut self, tolerance: f32) -> Self {
+        self.convergence_tolerance = tolerance;
+        self
+    }
+
+    /// Checks the convergence tolerance (the bounds are checked by the step).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if self.convergence_tolerance.is_nan() || self.convergence_tolerance <= 0.0 {
+            return Err(ParamError::ConvergenceTolerance(self.convergence_tolerance));
+        }
+        Ok(())
+    }
 }
 
 /// What the guard did about a rejected step.
@@ -229,16 +320,27 @@ pub enum ClothStatus {
     /// Simulated normally.
     #[default]
     Running,
-    /// Skipped because its parameters are invalid; the text says why. It
-    /// resumes by itself once they are fixed.
-    Invalid(String),
+    /// Skipped because its parameters, its method's settings or its state
+    /// are invalid: the typed error says which. It resumes by itself once
+    /// they are fixed.
+    Invalid(StepError),
+    /// Not stepped: no plugin steps the cloth's method. `method` names the
+    /// crate's method component the cloth carries whose plugin was not added
+    /// (for example `Some("chebyshev")` in an app with only `PbdPlugin`), or
+    /// is `None` if it carries no method component at all. It resumes by
+    /// itself once a method with a plugin is inserted.
+    NoMethod {
+        /// The method component the cloth carries, if it is one of the
+        /// crate's.
+        method: Option<&'static str>,
+    },
     /// Stopped by the divergence guard, at its last good state; call
     /// [`ClothStats::resume`] (or [`Cloth::reset`] and resume) to go on.
     Diverged(DivergenceReason),
 }
 
 /// What the last step of a cloth did. Updated every fixed step.
-#[derive(Component, Reflect, Clone, Debug, Default, PartialEq)]
+#[derive(Component, Reflect, Clone, Debug, PartialEq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct ClothStats {
     /// The method that stepped the cloth last (for example `"implicit"`).
@@ -249,9 +351,22 @@ pub struct ClothStats {
     pub step_time: Duration,
     /// Solver iterations in the last step.
     pub iterations: u32,
-    /// The method's convergence measure (gradient norm for the implicit
-    /// solver), if it has one.
+    /// The method's residual (gradient norm for the implicit solver and
+    /// projective dynamics, CG's relative residual), if it has one.
     pub residual: Option<f32>,
+    /// The last step's estimated distance from the exact implicit-Euler
+    /// solution relative to its motion (see
+    /// [`StepReport::relative_error`](crate::solver::StepReport::relative_error)),
+    /// for the iterative methods that minimise it (Jacobi, Chebyshev,
+    /// projective dynamics).
+    pub relative_error: Option<f32>,
+    /// False while the last step's `relative_error` exceeds the guard's
+    /// [`convergence_tolerance`](ClothGuard::convergence_tolerance): the cloth
+    /// moves, but not as implicit Euler would (a stiff cloth "locks").
+    /// Raise the iterations or use projective dynamics (`pd`).
+    pub converged: bool,
+    /// Steps so far that ended not converged.
+    pub unconverged_steps: u64,
     /// Largest relative spring elongation `(l − L)/L` after the step.
     pub max_stretch: f32,
     /// Total mechanical energy after the step (kinetic + spring +
@@ -266,6 +381,27 @@ pub struct ClothStats {
     pub retried_steps: u64,
     /// Whether the cloth is simulated.
     pub status: ClothStatus,
+}
+
+impl Default for ClothStats {
+    fn default() -> Self {
+        Self {
+            method: "",
+            steps: 0,
+            step_time: Duration::ZERO,
+            iterations: 0,
+            residual: None,
+            relative_error: None,
+            converged: true,
+            unconverged_steps: 0,
+            max_stretch: 0.0,
+            energy: 0.0,
+            contacts: 0,
+            substeps: 0,
+            retried_steps: 0,
+            status: ClothStatus::Running,
+        }
+    }
 }
 
 impl ClothStats {

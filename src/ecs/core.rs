@@ -8,10 +8,10 @@ use bevy::transform::helper::TransformHelper;
 use bevy::utils::Parallel;
 
 use super::{
-    Cloth, ClothColliders, ClothDiverged, ClothGuard, ClothMethods, ClothParams, ClothStats,
-    ClothStatus, ClothSystems, GuardAction,
+    Cloth, ClothColliders, ClothDiverged, ClothFollowSystems, ClothGuard, ClothMethods,
+    ClothNotConverged, ClothParams, ClothStats, ClothStatus, ClothSystems, GuardAction,
 };
-use crate::model::ClothState;
+use crate::methods::{AnyMethod, AnyMethodData};
 use crate::solver;
 
 /// Registers the cloth components and messages, configures
@@ -48,6 +48,7 @@ impl Plugin for ClothCorePlugin {
             .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()
             .add_message::<ClothDiverged>()
+            .add_message::<ClothNotConverged>()
             .configure_sets(
                 self.schedule,
                 (
@@ -80,6 +81,16 @@ impl Plugin for ClothCorePlugin {
                     place_and_pin.in_set(ClothSystems::SyncIn),
                     guard_and_measure.in_set(ClothSystems::SyncOut),
                 )
+                    .run_if(any_with_component::<Cloth>),
+            )
+            .configure_sets(
+                PostUpdate,
+                ClothFollowSystems.after(TransformSystems::Propagate),
+            )
+            .add_systems(
+                PostUpdate,
+                follow_anchors
+                    .in_set(ClothFollowSystems)
                     .run_if(any_with_component::<Cloth>),
             );
     }
@@ -119,9 +130,11 @@ fn count_requested_step(mut simulation: ResMut<ClothSimulation>) {
     }
 }
 
-/// Places new cloths at their entity's transform and moves pinned vertices
-/// to where the transform puts them now (their velocity is the displacement
-/// over the step).
+/// Moves reset cloths to their rest shape at their entity's transform, places
+/// a cloth again whose entity moved between its insertion and its first
+/// step, and moves pinned vertices to where the transform puts them now
+/// (their velocity is the displacement over the step). Also clears each
+/// cloth's `claimed` flag, which the method's step system sets.
 ///
 /// The global transform is computed here from the `Transform` hierarchy, not
 /// read from `GlobalTransform`, so a cloth spawned or moved since the last
@@ -133,28 +146,58 @@ fn place_and_pin(
 ) {
     let dt = time.delta_secs();
     cloths.par_iter_mut().for_each(|(entity, mut cloth)| {
+        let cloth = &mut *cloth;
+        cloth.claimed = false;
         let Ok(global) = helper.compute_global_transform(entity) else {
             return;
         };
         let affine = global.affine();
-        let cloth = &mut *cloth;
-        if !cloth.initialized {
-            cloth.state = ClothState::at_rest(&cloth.model, &affine);
-            cloth.last_good.copy_from(&cloth.state);
-            cloth.initialized = true;
+        let placed_at = cloth.placed_at.take();
+        if !cloth.initialized || placed_at.is_some_and(|p| p != affine) {
+            cloth.place(&affine);
             return;
         }
-        let rest = cloth.model.topology().rest_positions();
-        for &p in cloth.model.pins() {
-            let p = p as usize;
-            let target = affine.transform_point3a(rest[p].into());
-            let old = cloth.state.positions[p];
-            if dt > 0.0 {
-                cloth.state.velocities[p] = (target - old) / dt;
-            }
-            cloth.state.positions[p] = target;
-        }
+        pin(cloth, &affine, dt);
     });
+}
+
+/// Moves the pinned vertices of `cloth` to `affine` applied to their rest
+/// positions; with `dt > 0`, their velocity becomes the displacement over
+/// `dt`.
+fn pin(cloth: &mut Cloth, affine: &bevy::math::Affine3A, dt: f32) {
+    let rest = cloth.model.topology().rest_positions();
+    for &p in cloth.model.pins() {
+        let p = p as usize;
+        let target = affine.transform_point3a(rest[p].into());
+        let old = cloth.state.positions[p];
+        if dt > 0.0 {
+            cloth.state.velocities[p] = (target - old) / dt;
+        }
+        cloth.state.positions[p] = target;
+    }
+}
+
+/// Entities whose transform changed this frame (their own, or a parent's
+/// once propagated).
+type Moved = Or<(Changed<Transform>, Changed<GlobalTransform>)>;
+
+/// After `Update` (in `PostUpdate`, after transform propagation): pinned
+/// vertices of running cloths move to where their entity is now, so an
+/// anchor moved in `Update` is followed in the same frame rather than at the
+/// next fixed step. Positions only: the next fixed step gives them the
+/// velocity of any further motion.
+fn follow_anchors(
+    helper: TransformHelper,
+    mut cloths: Query<(Entity, &mut Cloth, &ClothStats), Moved>,
+) {
+    for (entity, mut cloth, stats) in &mut cloths {
+        if !cloth.initialized || !stats.is_running() || cloth.model.pins().is_empty() {
+            continue;
+        }
+        if let Ok(global) = helper.compute_global_transform(entity) {
+            pin(&mut cloth, &global.affine(), 0.0);
+        }
+    }
 }
 
 /// The divergence guard's second half and the after-step statistics.
@@ -171,9 +214,12 @@ fn guard_and_measure(
         &ClothParams,
         &ClothGuard,
         &mut ClothStats,
+        AnyMethodData,
     )>,
     mut diverged: Local<Parallel<Vec<ClothDiverged>>>,
+    mut unconverged: Local<Parallel<Vec<ClothNotConverged>>>,
     mut messages: MessageWriter<ClothDiverged>,
+    mut convergence: MessageWriter<ClothNotConverged>,
 ) {
     let dt = time.delta_secs_f64();
     if dt <= 0.0 {
@@ -181,8 +227,37 @@ fn guard_and_measure(
     }
     cloths
         .par_iter_mut()
-        .for_each(|(entity, mut cloth, params, guard, mut stats)| {
+        .for_each(|(entity, mut cloth, params, guard, mut stats, method)| {
             let cloth = &mut *cloth;
+            if !cloth.claimed {
+                let method = AnyMethod::from_item(method).map(|m| m.name());
+                if stats.status != (ClothStatus::NoMethod { method }) {
+                    match method {
+                        Some(name) => warn!(
+                            "cloth {entity} is not simulated: its method '{name}' has no plugin \
+                             in this app; add its plugin (or `ClothPlugins`)"
+                        ),
+                        None => warn!(
+                            "cloth {entity} is not simulated: it has no method component; \
+                             insert one, e.g. `ImplicitSolver::default()`"
+                        ),
+                    }
+                    stats.status = ClothStatus::NoMethod { method };
+                }
+                return;
+            }
+            if let Some(relative_error) = cloth.not_converged.take() {
+                let message = ClothNotConverged {
+                    entity,
+                    method: stats.method,
+                    iterations: stats.iterations,
+                    relative_error,
+                    tolerance: guard.convergence_tolerance,
+                    step: stats.steps,
+                };
+                warn!("{message}");
+                unconverged.borrow_local_mut().push(message);
+            }
             if let Some((reason, action)) = cloth.event.take() {
                 diverged.borrow_local_mut().push(ClothDiverged {
                     entity,
@@ -195,7 +270,12 @@ fn guard_and_measure(
             if !cloth.initialized || !stats.is_running() {
                 return;
             }
-            let params = params.step_params(dt);
+            let mut params = params.step_params(dt);
+            if params.stiffness.validate().is_err() {
+                // A method that ignores stiffness (PBD) runs with any; its
+                // energy then has no spring term rather than a NaN.
+                params.stiffness = solver::SpringStiffness::uniform(0.0);
+            }
             match guard
                 .bounds
                 .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
@@ -229,6 +309,9 @@ fn guard_and_measure(
     let mut found: Vec<ClothDiverged> = diverged.drain().collect();
     found.sort_by_key(|d| d.entity);
     messages.write_batch(found);
+    let mut found: Vec<ClothNotConverged> = unconverged.drain().collect();
+    found.sort_by_key(|d| d.entity);
+    convergence.write_batch(found);
 }
 
 impl ClothCorePlugin {

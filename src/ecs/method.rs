@@ -17,8 +17,8 @@ use super::{
     GuardAction,
 };
 use crate::collision::PenaltySphere;
-use crate::solver::Method;
 use crate::solver::guard::{GuardError, guarded_step};
+use crate::solver::{Method, StepError};
 
 /// A method as the ECS sees it: a [`Method`] settings type that is also a
 /// reflected component. Every method of the crate's table
@@ -187,12 +187,23 @@ impl<M: ClothMethod> Plugin for MethodPlugin<M> {
 type StepData<M> = (
     Entity,
     &'static mut Cloth,
-    &'static ClothParams,
+    Ref<'static, ClothParams>,
     &'static ClothGuard,
-    &'static M,
+    Ref<'static, M>,
     &'static mut ClothWorkspace<<M as Method>::Workspace>,
     &'static mut ClothStats,
 );
+
+/// Sets `status` to `Invalid(error)`, warning when it changes (compared by
+/// text, so a NaN parameter warns once too).
+fn refuse(entity: Entity, name: &str, stats: &mut ClothStats, error: StepError) {
+    let same =
+        matches!(&stats.status, ClothStatus::Invalid(e) if e.to_string() == error.to_string());
+    if !same {
+        warn!("cloth {entity} ('{name}') skipped: {error}");
+        stats.status = ClothStatus::Invalid(error);
+    }
+}
 
 /// Steps every running cloth that has method `M`, in parallel across cloths.
 fn step_cloths<M: ClothMethod>(
@@ -206,7 +217,18 @@ fn step_cloths<M: ClothMethod>(
     }
     cloths.par_iter_mut().for_each(
         |(entity, mut cloth, params, guard, method, mut ws, mut stats)| {
+            cloth.claimed = true;
+            if method.is_changed() || params.is_changed() {
+                cloth.convergence_reported = false;
+            }
+            if let ClothStatus::NoMethod { .. } = stats.status {
+                stats.status = ClothStatus::Running;
+            }
             if !cloth.initialized || matches!(stats.status, ClothStatus::Diverged(_)) {
+                return;
+            }
+            if let Err(error) = params.validate().and_then(|()| guard.validate()) {
+                refuse(entity, method.name(), &mut stats, error.into());
                 return;
             }
             let cloth = &mut *cloth;
@@ -221,6 +243,7 @@ fn step_cloths<M: ClothMethod>(
                 }));
             let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
             let model = &cloth.model;
+            let method = &*method;
             let start = Instant::now();
             let result = guarded_step(
                 &guard.bounds,
@@ -240,6 +263,18 @@ fn step_cloths<M: ClothMethod>(
                     stats.step_time = elapsed;
                     stats.iterations = done.report.iterations;
                     stats.residual = done.report.residual;
+                    stats.relative_error = done.report.relative_error;
+                    stats.converged = done
+                        .report
+                        .relative_error
+                        .is_none_or(|e| e <= guard.convergence_tolerance);
+                    if !stats.converged {
+                        stats.unconverged_steps += 1;
+                        if !cloth.convergence_reported {
+                            cloth.convergence_reported = true;
+                            cloth.not_converged = done.report.relative_error;
+                        }
+                    }
                     stats.substeps = done.substeps;
                     if let Some(reason) = done.retried_because {
                         stats.retried_steps += 1;
@@ -264,13 +299,7 @@ fn step_cloths<M: ClothMethod>(
                     stats.status = ClothStatus::Diverged(reason);
                     cloth.event = Some((reason, GuardAction::Paused));
                 }
-                Err(GuardError::Refused(error)) => {
-                    let text = error.to_string();
-                    if !matches!(&stats.status, ClothStatus::Invalid(t) if *t == text) {
-                        warn!("cloth {entity} ('{}') skipped: {text}", method.name());
-                        stats.status = ClothStatus::Invalid(text);
-                    }
-                }
+                Err(GuardError::Refused(error)) => refuse(entity, method.name(), &mut stats, error),
             }
         },
     );

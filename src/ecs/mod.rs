@@ -18,7 +18,7 @@ pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, Spher
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
-pub use schedule::ClothSystems;
+pub use schedule::{ClothFollowSystems, ClothSystems};
 
 /// Sent when the divergence guard rejects a cloth's step (see
 /// [`ClothGuard`]): the step went non-finite, left the guard's bounds, or its
@@ -37,4 +37,49 @@ pub struct ClothDiverged {
     pub action: GuardAction,
     /// Completed steps when it happened.
     pub step: u64,
+}
+
+/// Sent once per cloth when a step of its iterative method ends far from
+/// converged: its [`relative_error`](crate::solver::StepReport::relative_error)
+/// exceeded the guard's
+/// [`convergence_tolerance`](ClothGuard::convergence_tolerance). The step is
+/// kept (it is finite and inside the guard's bounds) but does not move as
+/// implicit Euler would: typically a stiff cloth that "locks" in the air.
+/// Sent again only after the method or the cloth's parameters change.
+/// [`ClothStats::converged`] and [`ClothStats::unconverged_steps`] follow
+/// every step.
+///
+/// Its `Display` names the remedy.
+#[derive(Message, Clone, Copy, Debug, PartialEq)]
+pub struct ClothNotConverged {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// The method that was stepping it.
+    pub method: &'static str,
+    /// Its iterations per step.
+    pub iterations: u32,
+    /// The step's relative error.
+    pub relative_error: f32,
+    /// The tolerance it exceeded.
+    pub tolerance: f32,
+    /// Completed steps when it happened.
+    pub step: u64,
+}
+
+impl std::fmt::Display for ClothNotConverged {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "cloth {} did not converge under '{}' with {} iterations at step {}: its estimated \
+             error is {:.0} % of its motion (tolerance {:.0} %), so it moves too little, as if \
+             locked; raise the iterations, lower the stiffness or the time step, or use the \
+             'pd' method (projective dynamics) for stiff cloth",
+            self.entity,
+            self.method,
+            self.iterations,
+            self.step,
+            100.0 * self.relative_error,
+            100.0 * self.tolerance
+        )
+    }
 }

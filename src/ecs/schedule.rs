@@ -36,3 +36,10 @@ pub enum ClothSystems {
     /// Empty hook after the step.
     Last,
 }
+
+/// The set in `PostUpdate` (after transform propagation, before the mesh
+/// write-back) in which pinned vertices follow their entity's transform as
+/// it is at the end of the frame, so an anchor moved in `Update` is followed
+/// in the same frame. See [`ClothSystems::SyncIn`] for the fixed-step side.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ClothFollowSystems;

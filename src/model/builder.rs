@@ -167,7 +167,14 @@ impl ClothBuilder {
     /// A Bevy triangle-list [`Mesh`] with `Float32x3` positions and an index
     /// buffer. Vertices are shared by index only: weld duplicated seam vertices
     /// first, or the cloth tears there.
-    pub fn from_mesh(mesh: &Mesh) -> Result<Self, MeshReadError> {
+    ///
+    /// Fails with [`ClothBuildError::Mesh`], so reading and building share one
+    /// error type: `ClothBuilder::from_mesh(&mesh)?.with_pins(..).build()?`.
+    pub fn from_mesh(mesh: &Mesh) -> Result<Self, ClothBuildError> {
+        Self::read_mesh(mesh).map_err(ClothBuildError::Mesh)
+    }
+
+    fn read_mesh(mesh: &Mesh) -> Result<Self, MeshReadError> {
         if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
             return Err(MeshReadError::NotTriangleList);
         }
@@ -299,6 +306,12 @@ impl ClothBuilder {
                 index,
                 vertex_count: n,
             });
+        }
+        let mut seen = vec![false; n];
+        for &p in &self.pins {
+            if std::mem::replace(&mut seen[p as usize], true) {
+                return Err(ClothBuildError::DuplicatePin { index: p });
+            }
         }
         let springs = match springs {
             Some(springs) => springs,

@@ -67,6 +67,13 @@ pub enum ClothBuildError {
         /// The number of vertices.
         vertex_count: usize,
     },
+    /// A vertex is pinned twice (a list of pins built from two overlapping
+    /// selections, say): pins are a set, so each vertex is listed once.
+    #[error("vertex {index} is pinned twice")]
+    DuplicatePin {
+        /// The repeated pin.
+        index: u32,
+    },
     /// Two vertices joined by an edge sit at the same place, so the edge has no
     /// rest length and its direction is undefined.
     #[error("edge ({a}, {b}) has zero rest length")]

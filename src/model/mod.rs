@@ -11,6 +11,8 @@ mod topology;
 
 use std::sync::Arc;
 
+use bevy::math::Vec3;
+
 pub use builder::{ClothBuilder, Mass};
 pub use error::{ClothBuildError, MeshReadError};
 pub use state::ClothState;
@@ -23,6 +25,7 @@ pub struct ClothModel {
     masses: Vec<f32>,
     pinned: Vec<bool>,
     pins: Vec<u32>,
+    size: f32,
 }
 
 impl ClothModel {
@@ -32,19 +35,33 @@ impl ClothModel {
         pins: Vec<u32>,
     ) -> Self {
         let mut pinned = vec![false; topology.vertex_count()];
-        let mut unique = Vec::with_capacity(pins.len());
-        for p in pins {
-            if !pinned[p as usize] {
-                pinned[p as usize] = true;
-                unique.push(p);
-            }
+        for &p in &pins {
+            pinned[p as usize] = true;
         }
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for &p in topology.rest_positions() {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        let size = if lo.x <= hi.x {
+            (hi - lo).length()
+        } else {
+            0.0
+        };
         Self {
             topology,
             masses,
             pinned,
-            pins: unique,
+            pins,
+            size,
         }
+    }
+
+    /// The diagonal of the rest shape's bounding box: the cloth's size, the
+    /// length scale of its tolerances.
+    #[inline]
+    pub fn size(&self) -> f32 {
+        self.size
     }
 
     /// The shared topology.
@@ -71,7 +88,8 @@ impl ClothModel {
         &self.pinned
     }
 
-    /// The pinned vertices, each once, in the order given.
+    /// The pinned vertices, in the order given (each once: the builder
+    /// refuses duplicates).
     #[inline]
     pub fn pins(&self) -> &[u32] {
         &self.pins

@@ -173,14 +173,28 @@ fn invalid_input_gets_typed_errors() {
 }
 
 #[test]
-fn total_mass_is_spread_and_pins_deduplicated() {
+fn total_mass_is_spread_and_duplicate_pins_refused() {
     let model = ClothBuilder::lab_grid(2)
         .with_total_mass(0.1)
-        .with_pins([1, 1, 0])
+        .with_pins([1, 0])
         .build()
         .unwrap();
     assert!(model.masses().iter().all(|&m| (m - 0.025).abs() < 1e-9));
     assert_eq!(model.pins(), &[1, 0]);
+    assert_eq!(
+        ClothBuilder::lab_grid(2).with_pins([1, 0, 1]).build(),
+        Err(ClothBuildError::DuplicatePin { index: 1 })
+    );
+}
+
+#[test]
+fn the_size_is_the_rest_shapes_diagonal() {
+    let model = ClothBuilder::lab_grid(21).build().unwrap();
+    assert!(
+        (model.size() - 200f32.sqrt()).abs() < 1e-4,
+        "{}",
+        model.size()
+    );
 }
 
 #[test]
@@ -202,7 +216,7 @@ fn bevy_meshes_become_cloths() {
     );
     assert_eq!(
         ClothBuilder::from_mesh(&points),
-        Err(MeshReadError::NotTriangleList)
+        Err(ClothBuildError::Mesh(MeshReadError::NotTriangleList))
     );
     let empty = Mesh::new(
         bevy::mesh::PrimitiveTopology::TriangleList,
@@ -210,7 +224,7 @@ fn bevy_meshes_become_cloths() {
     );
     assert_eq!(
         ClothBuilder::from_mesh(&empty),
-        Err(MeshReadError::MissingPositions)
+        Err(ClothBuildError::Mesh(MeshReadError::MissingPositions))
     );
 }
 

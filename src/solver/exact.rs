@@ -264,6 +264,7 @@ impl Method for ExactSolver {
         Ok(StepReport {
             iterations,
             residual: Some(report.relative_gradient as f32),
+            relative_error: None,
         })
     }
 }

@@ -28,7 +28,9 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
-use super::{LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport};
+use super::{
+    ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
+};
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
 
@@ -270,9 +272,15 @@ impl Method for ImplicitSolver {
         );
         let pass = VertexPass::new(&ws.gather, model, spheres);
         let mut residual = 0.0f32;
+        let mut convergence = ConvergenceSums::default();
+        let masses = model.masses();
         for i in 0..n {
             if !pinned[i] {
-                residual += pass.gradient(i, x[i]).0.length_squared();
+                let g = pass.gradient(i, x[i]).0;
+                residual += g.length_squared();
+                // x̃ = x_start + dt·v (v damped): the step's motion is x − x_start.
+                let motion = x[i] - (ws.x_tilde[i] - dt * v[i]);
+                convergence.add(g * (dt * dt / masses[i]), motion);
             }
         }
         let residual = residual.sqrt();
@@ -287,6 +295,7 @@ impl Method for ImplicitSolver {
         Ok(StepReport {
             iterations: config.iterations,
             residual: Some(residual),
+            relative_error: Some(convergence.relative_error(model, params.dt)),
         })
     }
 }

@@ -57,8 +57,16 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
     /// Checks the settings.
     fn validate(&self) -> Result<(), ParamError>;
 
+    /// Checks the parameters this method uses: all of them by default
+    /// ([`StepParams::validate`]); a method that ignores some (PBD has no
+    /// stiffness) checks only the others, so a value it never reads cannot
+    /// stop it.
+    fn validate_params(&self, params: &StepParams) -> Result<(), ParamError> {
+        params.validate()
+    }
+
     /// Advances `state` by one step, with penalty `spheres` acting inside it,
-    /// after checking the parameters, the settings and the state's size. On
+    /// after checking the parameters it uses, the settings and the state's size. On
     /// error the state is unchanged.
     fn step(
         &self,
@@ -68,7 +76,7 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
         spheres: &[PenaltySphere],
         workspace: &mut Self::Workspace,
     ) -> Result<StepReport, StepError> {
-        params.validate()?;
+        self.validate_params(params)?;
         self.validate()?;
         check_state(model, state)?;
         self.advance(model, state, params, spheres, workspace)

@@ -27,7 +27,7 @@
 //! Shared parts: [`params`] (what a step takes and returns), [`kernels`]
 //! (the packed-SIMD spring pass and the chunked parallel loops),
 //! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`],
-//! [`step_error`]) and [`cholesky`] (the sparse factorisation the direct
+//! [`step_error`], [`ConvergenceSums`]) and [`cholesky`] (the sparse factorisation the direct
 //! methods share).
 
 pub mod cholesky;
@@ -44,10 +44,13 @@ pub mod projective;
 pub mod symplectic;
 
 pub use kernels::PARALLEL_MIN;
-pub use measures::{energy, gradient, max_stretch, objective, step_error};
+pub use measures::{ConvergenceSums, energy, gradient, max_stretch, objective, step_error};
 pub use method::{LAB_ITERATIONS, LAB_RHO, Method};
 pub(crate) use params::check_state;
-pub use params::{ParamError, SolveError, SpringStiffness, StepError, StepParams, StepReport};
+pub use params::{
+    CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,
+    StepReport,
+};
 
 #[cfg(test)]
 mod tests;

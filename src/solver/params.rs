@@ -39,6 +39,16 @@ impl SpringStiffness {
         }
     }
 
+    /// Checks that every stiffness is finite and positive.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        for k in self.as_array() {
+            if !(k.is_finite() && k > 0.0) {
+                return Err(ParamError::Stiffness(k));
+            }
+        }
+        Ok(())
+    }
+
     /// Per-kind values as an array indexed by `SpringKind as usize`.
     #[inline]
     pub fn as_array(&self) -> [f32; 3] {
@@ -85,13 +95,15 @@ impl StepParams {
 
     /// Checks every parameter; a solver calls this before it touches state.
     pub fn validate(&self) -> Result<(), ParamError> {
+        self.validate_without_stiffness()?;
+        self.stiffness.validate()
+    }
+
+    /// Checks every parameter but the stiffness, for methods that do not use
+    /// it (PBD restores rest lengths instead).
+    pub fn validate_without_stiffness(&self) -> Result<(), ParamError> {
         if !(self.dt.is_finite() && self.dt > 0.0 && (self.dt as f32) > 0.0) {
             return Err(ParamError::TimeStep(self.dt));
-        }
-        for k in self.stiffness.as_array() {
-            if !(k.is_finite() && k > 0.0) {
-                return Err(ParamError::Stiffness(k));
-            }
         }
         if !(0.0..=1.0).contains(&self.damping) {
             return Err(ParamError::Damping(self.damping));
@@ -110,7 +122,7 @@ impl Default for StepParams {
 }
 
 /// Why a step was refused. The state is left untouched.
-#[derive(Error, Debug, Clone, Copy, PartialEq)]
+#[derive(Error, Reflect, Debug, Clone, Copy, PartialEq)]
 pub enum StepError {
     /// A parameter is invalid.
     #[error(transparent)]
@@ -129,7 +141,7 @@ pub enum StepError {
 }
 
 /// Why a linear solve failed. The state is left untouched.
-#[derive(Error, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Error, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SolveError {
     /// Conjugate gradients met a direction of non-positive curvature: `A` is
     /// not positive definite (compressed springs under the exact spring
@@ -150,7 +162,24 @@ pub struct StepReport {
     /// norm of the objective's gradient over free vertices for the implicit
     /// solver.
     pub residual: Option<f32>,
+    /// How far the step's result is from the exact implicit-Euler solution
+    /// of the same step, relative to how far the step moved the cloth: the
+    /// iterative methods' convergence measure (see
+    /// [`ConvergenceSums`](super::ConvergenceSums)). `None` for methods that
+    /// do not minimise the implicit-Euler objective (PBD, symplectic Euler)
+    /// or solve it directly.
+    pub relative_error: Option<f32>,
 }
+
+/// The relative error above which a step counts as not converged
+/// ([`StepReport::relative_error`]): an estimated distance from the exact
+/// implicit-Euler solution of more than 20 % of the step's motion.
+///
+/// Chosen from the stability map (`docs/report/stability.md`, section
+/// "Convergence"): over every cell of the lab sweep, the correct runs of
+/// Jacobi and Chebyshev stay below 0.18 and the wrong ones reach at least
+/// 0.25, with one exception the map names.
+pub const CONVERGENCE_TOLERANCE: f32 = 0.2;
 
 /// Checks that `state` has one position and velocity per vertex of `model`.
 pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), StepError> {
@@ -168,7 +197,7 @@ pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), 
 /// Returned by [`StepParams::validate`](crate::solver::StepParams::validate)
 /// and by every solver's step. Inside a running app the cloth is skipped and a
 /// warning is logged until the parameters are fixed.
-#[derive(Error, Debug, Clone, Copy, PartialEq)]
+#[derive(Error, Reflect, Debug, Clone, Copy, PartialEq)]
 pub enum ParamError {
     /// The time step is zero, negative or not finite.
     #[error("time step {0} must be finite and positive")]
@@ -194,4 +223,10 @@ pub enum ParamError {
     /// A divergence-guard bound is NaN, or a stretch bound is not positive.
     #[error("guard bound {0} must be a positive number")]
     Bound(f64),
+    /// A particle radius is negative or not finite.
+    #[error("particle radius {0} must be finite and non-negative")]
+    ParticleRadius(f32),
+    /// A convergence tolerance is not a positive number.
+    #[error("convergence tolerance {0} must be positive (or infinite to turn the check off)")]
+    ConvergenceTolerance(f32),
 }

@@ -72,6 +72,11 @@ impl Method for PbdSolver {
         Ok(())
     }
 
+    /// Everything but the stiffness, which PBD does not read.
+    fn validate_params(&self, params: &StepParams) -> Result<(), ParamError> {
+        params.validate_without_stiffness()
+    }
+
     /// Advances `state` by one PBD step (see the module docs). Stiffness is not
     /// used: strain limiting restores rest lengths directly.
     fn advance(
@@ -160,6 +165,7 @@ impl Method for PbdSolver {
         Ok(StepReport {
             iterations: config.iterations,
             residual: None,
+            relative_error: None,
         })
     }
 }

@@ -45,7 +45,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::spring_scales;
-use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport};
+use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
@@ -396,7 +396,7 @@ impl Method for ProjectiveSolver {
         spring_scales(springs, &ws.coeffs, x, |e, dx, scale| d[e] = dx * scale);
         let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
-        for &i in &ws.free {
+        for (f, &i) in ws.free.iter().enumerate() {
             let i = i as usize;
             let mass = f64::from(masses[i]);
             let mut g =
@@ -418,6 +418,19 @@ impl Method for ProjectiveSolver {
                 }
             }
             residual += g.length_squared();
+            ws.rhs[f] = g.x;
+            ws.rhs[m + f] = g.y;
+            ws.rhs[2 * m + f] = g.z;
+        }
+        // The error estimate P⁻¹g: one more substitution with the factor the
+        // iterations used.
+        ws.cholesky.solve_factored(&mut ws.rhs, 3)?;
+        let mut convergence = ConvergenceSums::default();
+        for (f, &i) in ws.free.iter().enumerate() {
+            let i = i as usize;
+            let error = DVec3::new(ws.rhs[f], ws.rhs[m + f], ws.rhs[2 * m + f]);
+            let motion = x[i].as_dvec3() - (ws.x_tilde[i].as_dvec3() - h * v[i].as_dvec3());
+            convergence.add_f64(error, motion);
         }
         let inv_h = 1.0 / params.dt as f32;
         for &i in &ws.free {
@@ -427,6 +440,7 @@ impl Method for ProjectiveSolver {
         Ok(StepReport {
             iterations: self.iterations,
             residual: Some(residual.sqrt() as f32),
+            relative_error: Some(convergence.relative_error(model, params.dt)),
         })
     }
 }

