@@ -443,11 +443,19 @@ fn stats_ui(ui: &mut egui::Ui, stats: &ClothStats, history: &VecDeque<f32>) {
             stats.retried_steps, stats.substeps
         ));
     }
-    match &stats.status {
-        ClothStatus::Running => {}
-        other => {
-            ui.colored_label(egui::Color32::LIGHT_RED, format!("status: {other:?}"));
+    let status = match &stats.status {
+        ClothStatus::Running => None,
+        ClothStatus::Invalid(error) => Some(format!("skipped: {error}")),
+        ClothStatus::NoMethod { method: Some(name) } => {
+            Some(format!("not simulated: no plugin for '{name}'"))
         }
+        ClothStatus::NoMethod { method: None } => {
+            Some("not simulated: no method component".to_string())
+        }
+        ClothStatus::Diverged(reason) => Some(format!("stopped by the guard: {reason:?}")),
+    };
+    if let Some(status) = status {
+        ui.colored_label(egui::Color32::LIGHT_RED, status);
     }
     // Step-time history.
     let (rect, _) =

@@ -33,7 +33,7 @@ use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
 use bevy_cloth::solver::linear::SpringJacobian;
-use bevy_cloth::solver::{SpringStiffness, StepParams, energy, max_stretch};
+use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, SpringStiffness, StepParams, energy, max_stretch};
 
 /// Something that happens to the scene at the start of a step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -253,9 +253,22 @@ pub struct Run {
     pub failed: Option<String>,
     /// Largest energy seen after any step, minus the energy at the start.
     pub energy_rise: f64,
+    /// Largest [`relative_error`](bevy_cloth::solver::StepReport::relative_error)
+    /// of any step, for the methods that report one.
+    pub max_relative_error: Option<f32>,
+    /// Steps whose relative error exceeded
+    /// [`CONVERGENCE_TOLERANCE`]: what raises the plugin's
+    /// `ClothNotConverged`.
+    pub unconverged_steps: usize,
 }
 
 impl Run {
+    /// True if the plugin would have flagged this run as not converged (at
+    /// least one step beyond [`CONVERGENCE_TOLERANCE`]).
+    pub fn flagged(&self) -> bool {
+        self.unconverged_steps > 0
+    }
+
     /// Lowest `y` of the final state.
     pub fn lowest(&self) -> f32 {
         self.state
@@ -282,6 +295,8 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
         caught: None,
         failed: None,
         energy_rise: 0.0,
+        max_relative_error: None,
+        unconverged_steps: 0,
     };
     let e0 = energy(model, &state, params);
     let mut spheres = scenario.spheres.clone();
@@ -316,7 +331,14 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
                 |s, p| method.step(model, s, p, &spheres, &mut ws),
             );
             match r {
-                Ok(_) => {
+                Ok(done) => {
+                    if let Some(e) = done.report.relative_error {
+                        run.max_relative_error =
+                            Some(run.max_relative_error.map_or(e, |m| m.max(e)));
+                        if e > CONVERGENCE_TOLERANCE {
+                            run.unconverged_steps += 1;
+                        }
+                    }
                     run.steps = n + 1;
                     run.energy_rise = run.energy_rise.max(energy(model, &state, params) - e0);
                 }

@@ -20,7 +20,7 @@ use crate::scenarios::{
 };
 use bevy_cloth::methods::AnyMethod;
 use bevy_cloth::model::ClothState;
-use bevy_cloth::solver::StepParams;
+use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, StepParams};
 
 /// What the stability map sweeps.
 #[derive(Clone, Debug)]
@@ -87,12 +87,118 @@ fn color(v: &Verdict) -> RGBColor {
 
 /// A cell's text: the class and, for wrong and caught, by how much or when.
 fn cell(o: &Outcome) -> String {
+    let text = verdict_text(o);
+    if o.run.flagged() {
+        format!("{text} ⚑")
+    } else {
+        text
+    }
+}
+
+fn verdict_text(o: &Outcome) -> String {
     match &o.verdict {
         Verdict::Correct => "✓".into(),
         Verdict::Wrong { lowest, stretch } => format!("wrong (low {lowest:.2}, str {stretch:.2})"),
         Verdict::Caught { step, reason } => format!("caught @{step} {reason:?}"),
         Verdict::Failed(why) => format!("FAILED: {why}"),
         Verdict::NoReference => "no ref".into(),
+    }
+}
+
+/// The "Convergence" section: for every method that reports a relative
+/// error, how the plugin's not-converged flag (⚑, some step beyond
+/// [`CONVERGENCE_TOLERANCE`]) agrees with the lab sweep's verdicts.
+fn convergence_section(
+    md: &mut String,
+    labels: &[String],
+    config: &StabilityConfig,
+    grid: &[Vec<Vec<Outcome>>],
+) {
+    writeln!(
+        md,
+        "## Convergence\n\n⚑ marks a run in which some step's estimated error exceeded {:.0} % of its \
+         motion (`CONVERGENCE_TOLERANCE`): the plugin sets `ClothStats::converged = false` and sends \
+         `ClothNotConverged`. Per method, over the lab sweep above: the flag against the verdict, and \
+         the largest relative error of any step in the runs of each kind.\n",
+        100.0 * CONVERGENCE_TOLERANCE
+    )
+    .ok();
+    writeln!(
+        md,
+        "| method | wrong, flagged | wrong, not flagged | ✓, flagged | ✓, not flagged | largest error in ✓ runs | smallest largest error in wrong runs |"
+    )
+    .ok();
+    writeln!(md, "|---|---|---|---|---|---|---|").ok();
+    let mut misses = Vec::new();
+    for (m, label) in labels.iter().enumerate() {
+        let outcomes: Vec<(usize, usize, &Outcome)> = grid
+            .iter()
+            .enumerate()
+            .flat_map(|(i, row)| row.iter().enumerate().map(move |(j, o)| (i, j, &o[m])))
+            .filter(|(_, _, o)| o.run.max_relative_error.is_some())
+            .collect();
+        if outcomes.is_empty() {
+            continue;
+        }
+        let mut counts = [0usize; 4];
+        let (mut worst_correct, mut best_wrong) = (0.0f32, f32::INFINITY);
+        for &(i, j, o) in &outcomes {
+            let e = o.run.max_relative_error.unwrap_or(0.0);
+            let wrong = matches!(o.verdict, Verdict::Wrong { .. });
+            let correct = o.verdict == Verdict::Correct;
+            let slot = match (wrong, correct, o.run.flagged()) {
+                (true, _, true) => 0,
+                (true, _, false) => 1,
+                (_, true, true) => 2,
+                (_, true, false) => 3,
+                _ => continue,
+            };
+            counts[slot] += 1;
+            if correct {
+                worst_correct = worst_correct.max(e);
+            } else {
+                best_wrong = best_wrong.min(e);
+            }
+            if slot == 1 || slot == 2 {
+                misses.push(format!(
+                    "{label} at k = {:e}, dt = {}: {} with largest error {e:.3}",
+                    config.stiffnesses[i],
+                    config.time_steps[j],
+                    verdict_text(o)
+                ));
+            }
+        }
+        writeln!(
+            md,
+            "| {label} | {} | {} | {} | {} | {worst_correct:.3} | {} |",
+            counts[0],
+            counts[1],
+            counts[2],
+            counts[3],
+            if best_wrong.is_finite() {
+                format!("{best_wrong:.3}")
+            } else {
+                "–".into()
+            }
+        )
+        .ok();
+    }
+    if misses.is_empty() {
+        writeln!(md, "\nThe flag and the verdicts agree on every cell.\n").ok();
+    } else {
+        writeln!(md, "\nWhere they disagree:\n").ok();
+        for miss in misses {
+            writeln!(md, "- {miss}").ok();
+        }
+        writeln!(
+            md,
+            "\nA verdict judges the whole run against the exact one (at least 1 % of the cloth's \
+             size, whatever the run's length), the flag one step at a time: a small error that \
+             repeats in the same direction for hundreds of steps (momentum lost every step) can make \
+             a run wrong without any step crossing the tolerance, and a large error on a very short \
+             run can stay inside the map's floor.\n"
+        )
+        .ok();
     }
 }
 
@@ -144,6 +250,8 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
         }
         writeln!(md).ok();
     }
+
+    convergence_section(&mut md, &labels, config, &grid);
 
     // 2. Resolution, iterative methods, lab k and dt, mass 1 per vertex.
     let iterative: Vec<AnyMethod> = methods
@@ -245,6 +353,8 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
          `SolveFailed`) at its last good state;\n\
          - **failed**: a panic, valid input refused, or a NaN that passed the guard (never \
          expected).\n\n\
+         ⚑ after a cell: the plugin would have flagged the run as not converged (see \
+         [Convergence](#convergence)).\n\n\
          PBD has no stiffness, so its reference is the exact run with `k = 1e6` per unit mass. \
          Each case runs `min(⌈1 s/dt⌉, 300)` steps. Methods run at their interactive settings: \
          32 iterations (Jacobi, Chebyshev with the lab's ρ = 0.995 or with ρ estimated, PBD), CG \

@@ -240,3 +240,45 @@ fn time_parallel_chunks() {
         );
     }
 }
+
+#[test]
+fn the_convergence_flag_follows_the_maps_verdicts() {
+    // Cells of the map's lab sweep (issue L): the plugin's not-converged flag
+    // is raised in the wrong runs of Jacobi and Chebyshev and not in the
+    // correct ones. The map itself lists every cell ("Convergence").
+    let methods: Vec<AnyMethod> = map_methods()
+        .into_iter()
+        .filter(|m| matches!(m, AnyMethod::Implicit(_)))
+        .collect();
+    assert_eq!(methods.len(), 3);
+    let (mut wrong, mut correct) = (0, 0);
+    for (k, dt) in [(1e3, 0.0333), (1e4, 0.0333), (1e5, 0.0333), (1e5, 0.01)] {
+        for o in sweep(&Scenario::lab(k, dt), &methods) {
+            let case = format!(
+                "k={k:e} dt={dt} {}: {:?} {:?}",
+                o.method, o.verdict, o.run.max_relative_error
+            );
+            match o.verdict {
+                Verdict::Wrong { .. } => {
+                    wrong += 1;
+                    assert!(o.run.flagged(), "{case}");
+                }
+                Verdict::Correct => {
+                    correct += 1;
+                    assert!(!o.run.flagged(), "{case}");
+                }
+                _ => panic!("{case}"),
+            }
+        }
+    }
+    // Both kinds were exercised.
+    assert!(
+        wrong >= 4 && correct >= 4,
+        "{wrong} wrong, {correct} correct"
+    );
+    // The issue's case: Chebyshev at k = 1e12 hangs frozen in the air.
+    for m in &methods {
+        let run = bevy_cloth_report::scenarios::run(&Scenario::lab(1e12, StepParams::LAB.dt), m);
+        assert!(run.flagged(), "{m:?}: {:?}", run.max_relative_error);
+    }
+}
