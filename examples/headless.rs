@@ -306,7 +306,7 @@ fn run(o: &Options) -> Result<(), String> {
     let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
     let finite = positions.iter().all(|p| p.is_finite());
     println!(
-        "scene={:?} method={} vertices={} cloths={} steps={} iterations={} residual={} median_step_us={:.1} median_update_us={:.1} retried_steps={} max_stretch={:.4} lowest_y={:.4} finite={} status={:?}",
+        "scene={:?} method={} vertices={} cloths={} steps={} iterations={} residual={} relative_error={} unconverged_steps={} median_step_us={:.1} median_update_us={:.1} retried_steps={} max_stretch={:.4} lowest_y={:.4} finite={} status={:?}",
         o.scene,
         stats.method,
         positions.len(),
@@ -316,6 +316,10 @@ fn run(o: &Options) -> Result<(), String> {
         stats
             .residual
             .map_or_else(|| "-".to_string(), |r| format!("{r:.3e}")),
+        stats
+            .relative_error
+            .map_or_else(|| "-".to_string(), |r| format!("{r:.3}")),
+        stats.unconverged_steps,
         median.as_secs_f64() * 1e6,
         median_update.as_secs_f64() * 1e6,
         stats.retried_steps,

@@ -9,6 +9,7 @@
 
 use std::collections::VecDeque;
 
+use bevy::diagnostic::{DiagnosticsStore, FrameTimeDiagnosticsPlugin};
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
@@ -41,7 +42,7 @@ impl Plugin for ClothInspectorPlugin {
         }
         app.init_resource::<Inspector>()
             .init_resource::<ClothSimulation>()
-            .add_systems(Update, record_history)
+            .add_systems(Update, (record_defaults, record_history))
             .add_systems(EguiPrimaryContextPass, inspector_panel);
         if self.keyboard {
             app.add_systems(Update, keyboard_shortcuts);
@@ -89,11 +90,56 @@ fn record_history(mut inspector: ResMut<Inspector>, stats: Query<(Entity, &Cloth
     }
 }
 
+/// The values a cloth was spawned with, recorded by the panel the first time
+/// it sees the cloth, for "reset all".
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct ClothDefaults {
+    /// The cloth's parameters at spawn.
+    pub params: ClothParams,
+    /// Its method at spawn.
+    pub method: Option<AnyMethod>,
+}
+
+/// Cloths the panel has not recorded yet.
+type Unrecorded = (With<Cloth>, Without<ClothDefaults>);
+
+fn record_defaults(
+    cloths: Query<(Entity, &ClothParams, AnyMethodData), Unrecorded>,
+    mut commands: Commands,
+) {
+    for (entity, params, method) in &cloths {
+        commands.entity(entity).insert(ClothDefaults {
+            params: *params,
+            method: AnyMethod::from_item(method),
+        });
+    }
+}
+
+/// Puts a cloth back at rest where its entity is, now, with fresh stats.
+fn reset_cloth(cloth: &mut Cloth, stats: &mut ClothStats, transform: Option<&GlobalTransform>) {
+    match transform {
+        Some(t) => cloth.reset_at(t),
+        None => cloth.reset(),
+    }
+    stats.clear();
+}
+
+type ResetItem = (
+    &'static mut Cloth,
+    &'static mut ClothStats,
+    Option<&'static GlobalTransform>,
+);
+
 fn keyboard_shortcuts(
     keys: Res<ButtonInput<KeyCode>>,
+    mut contexts: EguiContexts,
     mut simulation: ResMut<ClothSimulation>,
-    mut cloths: Query<(&mut Cloth, &mut ClothStats)>,
+    mut cloths: Query<ResetItem>,
 ) {
+    // Keys typed into a text field are the field's.
+    if contexts.ctx_mut().is_ok_and(|ctx| ctx.text_edit_focused()) {
+        return;
+    }
     if keys.just_pressed(KeyCode::Space) {
         simulation.paused = !simulation.paused;
     }
@@ -102,9 +148,8 @@ fn keyboard_shortcuts(
         simulation.step_once();
     }
     if keys.just_pressed(KeyCode::KeyR) {
-        for (mut cloth, mut stats) in &mut cloths {
-            cloth.reset();
-            stats.resume();
+        for (mut cloth, mut stats, transform) in &mut cloths {
+            reset_cloth(&mut cloth, &mut stats, transform);
         }
     }
 }
@@ -116,6 +161,8 @@ type ClothItem = (
     &'static mut ClothStats,
     Option<&'static mut ClothResolution>,
     Option<&'static Mesh3d>,
+    Option<&'static GlobalTransform>,
+    Option<&'static ClothDefaults>,
 );
 
 #[allow(clippy::too_many_arguments)]
@@ -129,6 +176,7 @@ fn inspector_panel(
     method_of: Query<AnyMethodData>,
     mut colliders: Query<(Entity, &mut SphereCollider)>,
     mut meshes: ResMut<Assets<Mesh>>,
+    diagnostics: Option<Res<DiagnosticsStore>>,
     mut commands: Commands,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
@@ -156,14 +204,42 @@ fn inspector_panel(
                             simulation.paused = true;
                             simulation.step_once();
                         }
-                        if ui.button("Reset").clicked() {
-                            for (_, mut cloth, _, mut stats, ..) in &mut cloths {
-                                cloth.reset();
-                                stats.resume();
+                        if ui
+                            .button("Reset cloth")
+                            .on_hover_text("every cloth back at rest (r)")
+                            .clicked()
+                        {
+                            for (_, mut cloth, _, mut stats, _, _, transform, _) in &mut cloths {
+                                reset_cloth(&mut cloth, &mut stats, transform);
+                            }
+                        }
+                        if ui
+                            .button("Reset all")
+                            .on_hover_text("and the parameters and methods the scene started with")
+                            .clicked()
+                        {
+                            for (
+                                entity,
+                                mut cloth,
+                                mut params,
+                                mut stats,
+                                _,
+                                _,
+                                transform,
+                                defaults,
+                            ) in &mut cloths
+                            {
+                                reset_cloth(&mut cloth, &mut stats, transform);
+                                if let Some(defaults) = defaults {
+                                    *params = defaults.params;
+                                    if let Some(method) = defaults.method {
+                                        method.insert(&mut commands.entity(entity));
+                                    }
+                                }
                             }
                         }
                     });
-                    ui.label("space: pause · h: step · r: reset");
+                    ui.label("space: pause · h: step · r: reset cloth");
                     let mut dt = fixed.timestep().as_secs_f64() * 1000.0;
                     if ui
                         .add(
@@ -195,8 +271,16 @@ fn inspector_panel(
                         ui.label("No cloth.");
                         return;
                     };
-                    let Ok((entity, mut cloth, mut params, mut stats, resolution, mesh)) =
-                        cloths.get_mut(selected)
+                    let Ok((
+                        entity,
+                        mut cloth,
+                        mut params,
+                        mut stats,
+                        resolution,
+                        mesh,
+                        _,
+                        defaults,
+                    )) = cloths.get_mut(selected)
                     else {
                         return;
                     };
@@ -204,7 +288,8 @@ fn inspector_panel(
                     let current = method_of.get(entity).ok().and_then(AnyMethod::from_item);
                     method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();
-                    params_ui(ui, &mut params);
+                    let defaults = defaults.map_or_else(ClothParams::default, |d| d.params);
+                    params_ui(ui, &mut params, &defaults);
                     if let Some(mut resolution) = resolution {
                         let mut n = resolution.n;
                         let (lo, hi) = resolution.range;
@@ -220,7 +305,7 @@ fn inspector_panel(
                                             .insert(&mesh.0, crate::render::cloth_mesh(&model));
                                     }
                                     *cloth = Cloth::new(model);
-                                    stats.resume();
+                                    stats.clear();
                                     resolution.n = n;
                                 }
                                 Err(e) => warn!("cannot rebuild the cloth at {n}: {e}"),
@@ -228,12 +313,26 @@ fn inspector_panel(
                         }
                     }
                     ui.separator();
-                    stats_ui(ui, &stats, &inspector.history);
+                    stats_ui(ui, &stats, &inspector.history, diagnostics.as_deref());
                     ui.separator();
                     colliders_ui(ui, &mut colliders);
                 });
         });
+    release_focus(ctx);
     Ok(())
+}
+
+/// egui keeps keyboard focus on the last slider or button clicked, and while
+/// it does, the orbit camera and the shortcuts ignore the scene. Focus stays
+/// only while a text field is being typed into; otherwise it is released as
+/// soon as the pointer is off the panel and not dragging a widget.
+fn release_focus(ctx: &egui::Context) {
+    if ctx.is_pointer_over_egui() || ctx.egui_is_using_pointer() || ctx.text_edit_focused() {
+        return;
+    }
+    if let Some(id) = ctx.memory(|m| m.focused()) {
+        ctx.memory_mut(|m| m.surrender_focus(id));
+    }
 }
 
 fn method_ui(
@@ -381,33 +480,106 @@ fn iterations_ui(ui: &mut egui::Ui, iterations: &mut u32, text: &str) {
     );
 }
 
-fn params_ui(ui: &mut egui::Ui, params: &mut Mut<ClothParams>) {
+fn params_ui(ui: &mut egui::Ui, params: &mut Mut<ClothParams>, defaults: &ClothParams) {
     let p = params.bypass_change_detection();
     let before = *p;
-    ui.add(
-        egui::Slider::new(&mut p.stiffness.stretch, 1.0..=1e6)
-            .text("stretch k")
-            .logarithmic(true),
+    let d = defaults;
+    log_value(
+        ui,
+        &mut p.stiffness.stretch,
+        d.stiffness.stretch,
+        "stretch k",
     );
-    ui.add(
-        egui::Slider::new(&mut p.stiffness.shear, 1.0..=1e6)
-            .text("shear k")
-            .logarithmic(true),
+    log_value(ui, &mut p.stiffness.shear, d.stiffness.shear, "shear k");
+    log_value(ui, &mut p.stiffness.bend, d.stiffness.bend, "bend k");
+    linear_value(ui, &mut p.damping, d.damping, 0.0..=1.0, 0.001, "damping");
+    linear_value(
+        ui,
+        &mut p.gravity.y,
+        d.gravity.y,
+        -100.0..=100.0,
+        0.1,
+        "gravity y",
     );
-    ui.add(
-        egui::Slider::new(&mut p.stiffness.bend, 1.0..=1e6)
-            .text("bend k")
-            .logarithmic(true),
+    linear_value(
+        ui,
+        &mut p.particle_radius,
+        d.particle_radius,
+        0.0..=1.0,
+        0.001,
+        "particle radius",
     );
-    ui.add(egui::Slider::new(&mut p.damping, 0.9..=1.0).text("damping"));
-    ui.add(egui::Slider::new(&mut p.gravity.y, -30.0..=0.0).text("gravity y"));
-    ui.add(egui::Slider::new(&mut p.particle_radius, 0.0..=0.5).text("particle radius"));
     if *p != before {
         params.set_changed();
     }
 }
 
-fn stats_ui(ui: &mut egui::Ui, stats: &ClothStats, history: &VecDeque<f32>) {
+/// A wide-range positive value (a stiffness): a drag value that moves about
+/// a decade per 100 px and accepts typed values, ÷10 and ×10 buttons, and a
+/// reset to `default`.
+fn log_value(ui: &mut egui::Ui, value: &mut f32, default: f32, text: &str) {
+    const RANGE: core::ops::RangeInclusive<f32> = 1e-3..=1e12;
+    ui.horizontal(|ui| {
+        // d(value)/dpx = value·ln(10)/100: a factor of 10 per 100 px.
+        let speed = f64::from(value.abs().max(1e-3)) * core::f64::consts::LN_10 / 100.0;
+        ui.add(
+            egui::DragValue::new(value)
+                .speed(speed)
+                .range(RANGE)
+                .custom_formatter(|v, _| format!("{v:.4e}")),
+        );
+        if ui.small_button("÷10").clicked() {
+            *value = (*value / 10.0).clamp(*RANGE.start(), *RANGE.end());
+        }
+        if ui.small_button("×10").clicked() {
+            *value = (*value * 10.0).clamp(*RANGE.start(), *RANGE.end());
+        }
+        reset_button(ui, value, default);
+        ui.label(text);
+    });
+}
+
+/// A bounded value: a drag value (typed values accepted) and a reset.
+fn linear_value(
+    ui: &mut egui::Ui,
+    value: &mut f32,
+    default: f32,
+    range: core::ops::RangeInclusive<f32>,
+    speed: f64,
+    text: &str,
+) {
+    ui.horizontal(|ui| {
+        ui.add(egui::DragValue::new(value).speed(speed).range(range));
+        reset_button(ui, value, default);
+        ui.label(text);
+    });
+}
+
+fn reset_button(ui: &mut egui::Ui, value: &mut f32, default: f32) {
+    if ui
+        .add_enabled(*value != default, egui::Button::new("reset").small())
+        .on_hover_text(format!("reset to {default}"))
+        .clicked()
+    {
+        *value = default;
+    }
+}
+
+fn stats_ui(
+    ui: &mut egui::Ui,
+    stats: &ClothStats,
+    history: &VecDeque<f32>,
+    diagnostics: Option<&DiagnosticsStore>,
+) {
+    if let Some(frame) = diagnostics
+        .and_then(|d| d.get(&FrameTimeDiagnosticsPlugin::FRAME_TIME))
+        .and_then(|d| d.smoothed())
+    {
+        ui.label(format!(
+            "frame: {frame:.1} ms ({:.0} FPS)",
+            1000.0 / frame.max(1e-3)
+        ));
+    }
     ui.label(format!("method: {}   steps: {}", stats.method, stats.steps));
     ui.label(format!(
         "step: {:.1} µs   iterations: {}",

@@ -70,8 +70,9 @@ pub fn windowed_app(title: &str, dt: f64, screenshot: Option<ScreenshotMode>) ->
         DragPlugin,
         ClothInspectorPlugin::default(),
     ))
+    .add_plugins(bevy::diagnostic::FrameTimeDiagnosticsPlugin::default())
     .insert_resource(Time::<Fixed>::from_seconds(dt))
-    .add_systems(Update, hold_camera_while_dragging);
+    .add_systems(Update, (hold_camera_while_dragging, spare_a_cpu_renderer));
     if let Some(mode) = screenshot {
         app.insert_resource(mode)
             .add_systems(Update, screenshot_and_exit);
@@ -119,7 +120,9 @@ pub fn light_and_ground(
     ));
 }
 
-/// An orbit camera (drag: orbit, right-drag: pan, wheel: zoom).
+/// An orbit camera (drag: orbit, right-drag: pan, wheel: zoom in even
+/// steps of about 6 % per notch, without smoothing, which at a software
+/// renderer's few frames per second made each notch a large, uneven jump).
 pub fn orbit_camera(commands: &mut Commands, focus: Vec3, radius: f32) {
     commands.spawn((
         Camera3d::default(),
@@ -128,9 +131,43 @@ pub fn orbit_camera(commands: &mut Commands, focus: Vec3, radius: f32) {
         PanOrbitCamera {
             focus,
             radius: Some(radius),
+            zoom_sensitivity: 0.3,
+            zoom_smoothness: 0.0,
             ..default()
         },
     ));
+}
+
+/// On a CPU renderer (llvmpipe, as in CI and on machines without a GPU),
+/// turns off what costs most and shows least: the sun's shadow maps and
+/// MSAA. Once, as soon as the adapter is known.
+pub fn spare_a_cpu_renderer(
+    adapter: Option<Res<bevy::render::renderer::RenderAdapterInfo>>,
+    mut done: Local<bool>,
+    mut lights: Query<&mut DirectionalLight>,
+    cameras: Query<Entity, With<Camera3d>>,
+    mut commands: Commands,
+) {
+    let Some(adapter) = adapter else {
+        return;
+    };
+    if *done || lights.is_empty() || cameras.is_empty() {
+        return;
+    }
+    *done = true;
+    if format!("{:?}", adapter.device_type) != "Cpu" {
+        return;
+    }
+    info!(
+        "CPU renderer '{}': shadows and MSAA off to keep the frame rate up",
+        adapter.name
+    );
+    for mut light in &mut lights {
+        light.shadow_maps_enabled = false;
+    }
+    for camera in &cameras {
+        commands.entity(camera).insert(Msaa::Off);
+    }
 }
 
 /// The camera does not orbit while an entity is dragged.

@@ -41,7 +41,8 @@ pub struct ClothColliders {
 /// global translation (rotation and scale are ignored; the radius is the
 /// component's). Move the entity to push the cloth. Contacts happen at the
 /// radius plus the cloth's [`ClothParams::particle_radius`];
-/// [`ClothStats::contacts`] counts projections.
+/// [`ClothStats::contacts`] counts its contacts (projections, or vertices
+/// inside a penalty sphere).
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Debug, PartialEq)]
 #[require(Transform)]
@@ -189,6 +190,6 @@ fn project_cloths(
                 params.particle_radius,
                 dt,
             );
-            stats.contacts = contacts as u32;
+            stats.contacts += contacts as u32;
         });
 }

@@ -136,6 +136,13 @@ impl Cloth {
         self.guard_memory = GuardMemory::default();
     }
 
+    /// Puts the cloth back to its rest shape at `transform` now (the mesh
+    /// shows it in the same frame), forgetting the guard's halvings.
+    pub fn reset_at(&mut self, transform: &GlobalTransform) {
+        self.place(&transform.affine());
+        self.guard_memory = GuardMemory::default();
+    }
+
     /// The rest shape at `affine`, at rest.
     pub(crate) fn place(&mut self, affine: &bevy::math::Affine3A) {
         self.state = ClothState::at_rest(&self.model, affine);
@@ -249,7 +256,7 @@ pub struct ClothGuard {
     /// What to do with a step that fails.
     pub policy: GuardPolicy,
     /// The relative error above which a step is not converged (default
-    /// [`CONVERGENCE_TOLERANCE`], 0.2; `f32::INFINITY` turns the check off).
+    /// [`CONVERGENCE_TOLERANCE`], 0.25; `f32::INFINITY` turns the check off).
     pub convergence_tolerance: f32,
 }
 
@@ -345,7 +352,8 @@ pub enum ClothStatus {
 pub struct ClothStats {
     /// The method that stepped the cloth last (for example `"implicit"`).
     pub method: &'static str,
-    /// Completed steps since the cloth was spawned.
+    /// Completed steps since the cloth was spawned, reset by the panel or
+    /// switched to another method (each starts the stats afresh).
     pub steps: u64,
     /// Wall-clock time of the last solver step (collision excluded).
     pub step_time: Duration,
@@ -372,7 +380,8 @@ pub struct ClothStats {
     /// Total mechanical energy after the step (kinetic + spring +
     /// gravitational).
     pub energy: f64,
-    /// Vertex–collider contacts resolved in the last step.
+    /// Vertex–collider contacts in the last step: vertices inside a penalty
+    /// sphere after the step, plus vertices a projection sphere moved.
     pub contacts: u32,
     /// Substeps the last step took: 1, or more when the guard retried it with
     /// halved time steps.
@@ -409,6 +418,13 @@ impl ClothStats {
     #[inline]
     pub fn is_running(&self) -> bool {
         self.status == ClothStatus::Running
+    }
+
+    /// Back to a fresh cloth's statistics (step counter, guard notes,
+    /// convergence), keeping nothing: what the panel's reset and a method
+    /// switch do.
+    pub fn clear(&mut self) {
+        *self = Self::default();
     }
 
     /// Lets a cloth stopped by the divergence guard run again.

@@ -218,8 +218,15 @@ fn step_cloths<M: ClothMethod>(
     cloths.par_iter_mut().for_each(
         |(entity, mut cloth, params, guard, method, mut ws, mut stats)| {
             cloth.claimed = true;
+            stats.contacts = 0;
             if method.is_changed() || params.is_changed() {
                 cloth.convergence_reported = false;
+            }
+            if !stats.method.is_empty() && stats.method != method.name() {
+                // Another method: what the guard and the stats said of the old
+                // one does not carry over.
+                stats.clear();
+                cloth.guard_memory = Default::default();
             }
             if let ClothStatus::NoMethod { .. } = stats.status {
                 stats.status = ClothStatus::Running;
@@ -259,6 +266,20 @@ fn step_cloths<M: ClothMethod>(
             stats.method = method.name();
             match result {
                 Ok(done) => {
+                    // Penalty contacts (projection contacts are counted by the
+                    // collision system, which adds to these).
+                    stats.contacts += penalty
+                        .iter()
+                        .map(|s| {
+                            cloth
+                                .state
+                                .positions
+                                .iter()
+                                .zip(model.pinned())
+                                .filter(|&(&x, &pinned)| !pinned && s.contact(x).is_some())
+                                .count() as u32
+                        })
+                        .sum::<u32>();
                     stats.steps += 1;
                     stats.step_time = elapsed;
                     stats.iterations = done.report.iterations;

@@ -72,14 +72,30 @@ impl std::fmt::Display for ClothNotConverged {
             f,
             "cloth {} did not converge under '{}' with {} iterations at step {}: its estimated \
              error is {:.0} % of its motion (tolerance {:.0} %), so it moves too little, as if \
-             locked; raise the iterations, lower the stiffness or the time step, or use the \
-             'pd' method (projective dynamics) for stiff cloth",
+             locked; {}",
             self.entity,
             self.method,
             self.iterations,
             self.step,
             100.0 * self.relative_error,
-            100.0 * self.tolerance
+            100.0 * self.tolerance,
+            self.remedy()
         )
+    }
+}
+
+impl ClothNotConverged {
+    /// What to do about it, from the stability map: more iterations, a
+    /// smaller stiffness or time step, or a method that stays right at
+    /// higher stiffness (`pd`; beyond it, the direct `linear-direct` or
+    /// `exact` on small cloths).
+    pub fn remedy(&self) -> &'static str {
+        if self.method == "pd" {
+            "raise the iterations, lower the stiffness or the time step, or use 'linear-direct' \
+             or 'exact' (direct solves, right at any stiffness, for small cloths)"
+        } else {
+            "raise the iterations, lower the stiffness or the time step, or use the 'pd' method \
+             (projective dynamics), which stays right about a decade stiffer"
+        }
     }
 }

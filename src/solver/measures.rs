@@ -57,11 +57,14 @@ pub fn gradient(
 /// that hardly moves is measured against a floor of 1 % of its size per
 /// second (the stability map's own floor).
 ///
-/// The estimate `e` is the error of the final iterate under the method's best
-/// cheap model of the Hessian `H`: `dt²/m_i · g_i` for Jacobi and Chebyshev
-/// (an upper bound on `H⁻¹g` for its smooth, slowly converging part, which
-/// is what makes a stiff cloth "lock"), and the projective-dynamics matrix
-/// `P⁻¹g` for projective dynamics.
+/// The estimate is `e_i = dt²/m_i · g_i`, `g` the objective's gradient at
+/// the method's final iterate: since the Hessian is at least `M/dt²` (with
+/// compressed springs' negative stiffness left out), `‖H⁻¹g‖` is at most
+/// this, and it is close for the smooth, slowly converging error that makes
+/// a stiff cloth "lock". It overestimates a rough residual, which stiff
+/// springs correct by themselves. (Projective dynamics' own matrix, `P⁻¹g`,
+/// was tried and underestimates: `P` is stiff across springs where the true
+/// Hessian is soft, so it missed every wrong cell of the map.)
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ConvergenceSums {
     error: f64,

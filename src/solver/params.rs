@@ -173,13 +173,16 @@ pub struct StepReport {
 
 /// The relative error above which a step counts as not converged
 /// ([`StepReport::relative_error`]): an estimated distance from the exact
-/// implicit-Euler solution of more than 20 % of the step's motion.
+/// implicit-Euler solution of more than 25 % of the step's motion.
 ///
 /// Chosen from the stability map (`docs/report/stability.md`, section
-/// "Convergence"): over every cell of the lab sweep, the correct runs of
-/// Jacobi and Chebyshev stay below 0.18 and the wrong ones reach at least
-/// 0.25, with one exception the map names.
-pub const CONVERGENCE_TOLERANCE: f32 = 0.2;
+/// "Convergence"): over the lab sweep, no correct run of Jacobi or Chebyshev
+/// has a step above 0.18, and every wrong one but one (which the map names)
+/// has steps above 0.25. Within that gap it is set high, because a cloth
+/// resting on a projection sphere reads about 0.2 at the lab's settings
+/// with Chebyshev and projective dynamics alike: the solve ignores the
+/// sphere, which then undoes the unconverged fall.
+pub const CONVERGENCE_TOLERANCE: f32 = 0.25;
 
 /// Checks that `state` has one position and velocity per vertex of `model`.
 pub(crate) fn check_state(model: &ClothModel, state: &ClothState) -> Result<(), StepError> {

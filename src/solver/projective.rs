@@ -396,7 +396,8 @@ impl Method for ProjectiveSolver {
         spring_scales(springs, &ws.coeffs, x, |e, dx, scale| d[e] = dx * scale);
         let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
-        for (f, &i) in ws.free.iter().enumerate() {
+        let mut convergence = ConvergenceSums::default();
+        for &i in &ws.free {
             let i = i as usize;
             let mass = f64::from(masses[i]);
             let mut g =
@@ -418,19 +419,8 @@ impl Method for ProjectiveSolver {
                 }
             }
             residual += g.length_squared();
-            ws.rhs[f] = g.x;
-            ws.rhs[m + f] = g.y;
-            ws.rhs[2 * m + f] = g.z;
-        }
-        // The error estimate P⁻¹g: one more substitution with the factor the
-        // iterations used.
-        ws.cholesky.solve_factored(&mut ws.rhs, 3)?;
-        let mut convergence = ConvergenceSums::default();
-        for (f, &i) in ws.free.iter().enumerate() {
-            let i = i as usize;
-            let error = DVec3::new(ws.rhs[f], ws.rhs[m + f], ws.rhs[2 * m + f]);
             let motion = x[i].as_dvec3() - (ws.x_tilde[i].as_dvec3() - h * v[i].as_dvec3());
-            convergence.add_f64(error, motion);
+            convergence.add_f64(g * (h * h / mass), motion);
         }
         let inv_h = 1.0 / params.dt as f32;
         for &i in &ws.free {

@@ -129,5 +129,7 @@ fn a_penalty_sphere_holds_the_cloth_outside_it() {
             s.method
         );
         assert!(deepest < 0.02, "{}: {deepest} deep", s.method);
+        // Resting on it: penalty contacts are counted like projections.
+        assert!(s.contacts > 0, "{}: contacts {}", s.method, s.contacts);
     }
 }

@@ -255,3 +255,15 @@ fn an_anchor_moved_before_sync_in_is_followed_in_the_same_fixed_step() {
         assert!((v.x - 0.5 / DT as f32).abs() < 1e-2, "{v}");
     }
 }
+
+#[test]
+fn reset_at_puts_the_cloth_at_rest_at_once() {
+    let mut app = app();
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    run_steps(&mut app, 10);
+    let at = GlobalTransform::from_xyz(0.0, 1.0, 0.0);
+    let mut c = app.world_mut().get_mut::<Cloth>(cloth).unwrap();
+    c.reset_at(&at);
+    let expected = ClothState::at_rest(c.model(), &at.affine());
+    assert_eq!(c.state(), &expected, "the same frame shows the reset cloth");
+}
