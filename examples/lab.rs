@@ -77,8 +77,27 @@ fn main() -> ExitCode {
         }
     };
     let mut app = common::windowed_app("bevy_cloth — lab", 0.0333, screenshot);
-    app.insert_resource(options).add_systems(Startup, setup);
+    app.insert_resource(options)
+        .add_systems(Startup, setup)
+        .add_systems(Update, draw_spheres_at_their_radius);
     common::run(app)
+}
+
+/// The drawn sphere is this much smaller than the collision sphere: the
+/// projection puts vertices on the collision surface, and the flat triangles
+/// between them cut chords up to ~0.9 % of the radius deep into it (a 0.7
+/// diagonal across a 2.7 sphere), so a sphere drawn at full size pokes
+/// through the cloth between its vertices.
+const DRAWN_RADIUS: f32 = 0.985;
+
+/// Scales each sphere's unit mesh to its collider's radius (the panel's
+/// radius slider changes the collider), times [`DRAWN_RADIUS`].
+fn draw_spheres_at_their_radius(
+    mut spheres: Query<(&SphereCollider, &mut Transform), Changed<SphereCollider>>,
+) {
+    for (sphere, mut transform) in &mut spheres {
+        transform.scale = Vec3::splat(sphere.radius * DRAWN_RADIUS);
+    }
 }
 
 fn setup(
@@ -115,13 +134,13 @@ fn setup(
     ));
     options.method.insert(&mut cloth);
     commands.spawn((
-        Mesh3d(meshes.add(Sphere::new(2.7).mesh().ico(5)?)),
+        Mesh3d(meshes.add(Sphere::new(1.0).mesh().ico(5)?)),
         MeshMaterial3d(materials.add(StandardMaterial {
             base_color: Color::srgb(0.25, 0.45, 0.85),
             perceptual_roughness: 0.4,
             ..default()
         })),
-        Transform::from_xyz(0.0, -4.0, 4.0),
+        Transform::from_xyz(0.0, -4.0, 4.0).with_scale(Vec3::splat(2.7 * DRAWN_RADIUS)),
         SphereCollider::new(2.7),
         Draggable,
     ));

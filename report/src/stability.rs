@@ -257,7 +257,12 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     let iterative: Vec<AnyMethod> = methods
         .iter()
         .copied()
-        .filter(|m| matches!(m, AnyMethod::Implicit(_) | AnyMethod::Pbd(_)))
+        .filter(|m| {
+            matches!(
+                m,
+                AnyMethod::Implicit(_) | AnyMethod::Projective(_) | AnyMethod::Pbd(_)
+            )
+        })
         .collect();
     writeln!(
         md,
