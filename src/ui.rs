@@ -289,7 +289,9 @@ fn inspector_panel(
                     method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();
                     let defaults = defaults.map_or_else(ClothParams::default, |d| d.params);
-                    params_ui(ui, &mut params, &defaults);
+                    // PBD restores rest lengths: it has no stiffness to tune.
+                    let stiffness = !matches!(current, Some(AnyMethod::Pbd(_)));
+                    params_ui(ui, &mut params, &defaults, stiffness);
                     if let Some(mut resolution) = resolution {
                         let mut n = resolution.n;
                         let (lo, hi) = resolution.range;
@@ -480,18 +482,26 @@ fn iterations_ui(ui: &mut egui::Ui, iterations: &mut u32, text: &str) {
     );
 }
 
-fn params_ui(ui: &mut egui::Ui, params: &mut Mut<ClothParams>, defaults: &ClothParams) {
+/// The cloth's parameters; the stiffness only if the method reads it.
+fn params_ui(
+    ui: &mut egui::Ui,
+    params: &mut Mut<ClothParams>,
+    defaults: &ClothParams,
+    stiffness: bool,
+) {
     let p = params.bypass_change_detection();
     let before = *p;
     let d = defaults;
-    log_value(
-        ui,
-        &mut p.stiffness.stretch,
-        d.stiffness.stretch,
-        "stretch k",
-    );
-    log_value(ui, &mut p.stiffness.shear, d.stiffness.shear, "shear k");
-    log_value(ui, &mut p.stiffness.bend, d.stiffness.bend, "bend k");
+    if stiffness {
+        log_value(
+            ui,
+            &mut p.stiffness.stretch,
+            d.stiffness.stretch,
+            "stretch k",
+        );
+        log_value(ui, &mut p.stiffness.shear, d.stiffness.shear, "shear k");
+        log_value(ui, &mut p.stiffness.bend, d.stiffness.bend, "bend k");
+    }
     linear_value(ui, &mut p.damping, d.damping, 0.0..=1.0, 0.001, "damping");
     linear_value(
         ui,
@@ -629,12 +639,17 @@ fn stats_ui(
     if let Some(status) = status {
         ui.colored_label(egui::Color32::LIGHT_RED, status);
     }
-    // Step-time history.
+    // Step-time history, its label above the plot.
+    let max = history.iter().copied().fold(1.0f32, f32::max);
+    ui.label(
+        egui::RichText::new(format!("step time (last {HISTORY} steps), max {max:.0} µs"))
+            .small()
+            .color(egui::Color32::GRAY),
+    );
     let (rect, _) =
         ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, egui::Color32::from_gray(30));
-    let max = history.iter().copied().fold(1.0f32, f32::max);
     if history.len() > 1 {
         let points: Vec<egui::Pos2> = history
             .iter()
@@ -651,13 +666,6 @@ fn stats_ui(
             egui::Stroke::new(1.5, egui::Color32::LIGHT_GREEN),
         ));
     }
-    painter.text(
-        rect.left_top() + egui::vec2(4.0, 2.0),
-        egui::Align2::LEFT_TOP,
-        format!("step time, max {max:.0} µs"),
-        egui::FontId::proportional(11.0),
-        egui::Color32::GRAY,
-    );
 }
 
 fn colliders_ui(ui: &mut egui::Ui, colliders: &mut Query<(Entity, &mut SphereCollider)>) {

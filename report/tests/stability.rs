@@ -141,6 +141,11 @@ fn unsimulatable_input_gets_a_typed_error_from_every_method() {
                 &[],
                 &mut AnyWorkspace::default(),
             );
+            if matches!(method, AnyMethod::Pbd(_)) && params.stiffness.validate().is_err() {
+                // PBD never reads the stiffness, so it does not refuse it.
+                assert!(r.is_ok() && state.is_finite(), "pbd: {r:?}");
+                continue;
+            }
             assert!(
                 matches!(r, Err(bevy_cloth::solver::StepError::Params(_))),
                 "{}: {params:?} gave {r:?}",
