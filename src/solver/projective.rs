@@ -257,6 +257,7 @@ impl ProjectiveWorkspace {
         model: &ClothModel,
         x: &[Vec3A],
         spheres: &[PenaltySphere],
+        parallel: bool,
     ) -> Result<(), SolveError> {
         let springs = model.topology().springs();
         let d = &mut self.d;
@@ -282,7 +283,9 @@ impl ProjectiveWorkspace {
             self.rhs[m + f] = acc.y;
             self.rhs[2 * m + f] = acc.z;
         }
-        self.cholesky.solve_factored(&mut self.rhs, 3)
+        // x, y and z separately (in parallel on a large cloth).
+        self.cholesky
+            .solve_factored_columns(&mut self.rhs, 3, parallel)
     }
 }
 
@@ -361,7 +364,7 @@ impl Method for ProjectiveSolver {
         ws.update_norms.clear();
         let mut omega = 1.0f32;
         for k in 0..self.iterations {
-            ws.local_global(model, x, spheres)?;
+            ws.local_global(model, x, spheres, params.parallel)?;
             if k == delay && chebyshev == Some(Rho::Auto) {
                 rho = rho_from_update_norms(&ws.update_norms);
             }
