@@ -212,11 +212,6 @@ fn parallel_chunks_give_the_same_bits_as_serial() {
     for method in [
         AnyMethod::Implicit(bevy_cloth::solver::implicit::ImplicitSolver::jacobi(8)),
         AnyMethod::Implicit(bevy_cloth::solver::implicit::ImplicitSolver::chebyshev_auto(16)),
-        // 33 122 free vertices: x, y and z are solved on two threads.
-        AnyMethod::Projective(bevy_cloth::solver::Method::with_iterations(
-            bevy_cloth::solver::projective::ProjectiveSolver::default(),
-            3,
-        )),
     ] {
         let serial = bevy_cloth_report::scenarios::run(&serial_scenario, &method);
         let parallel = bevy_cloth_report::scenarios::run(&scenario, &method);

@@ -19,8 +19,6 @@ pub struct SparseCholesky {
     symbolic: Option<SymbolicCholesky<usize>>,
     factor: Vec<f64>,
     memory: Option<MemBuffer>,
-    /// One workspace per right-hand side, for column-by-column solves.
-    column_memory: Vec<MemBuffer>,
     /// Right-hand sides the memory is sized for.
     columns: usize,
     /// True once `factor` holds a numeric LLᵀ factorisation.
@@ -53,9 +51,6 @@ impl SparseCholesky {
                 sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
                 sym.solve_in_place_scratch::<f64>(columns, Par::Seq),
             ])));
-            self.column_memory = (0..columns)
-                .map(|_| MemBuffer::new(sym.solve_in_place_scratch::<f64>(1, Par::Seq)))
-                .collect();
             self.symbolic = Some(sym);
             self.columns = columns;
         }
@@ -176,53 +171,6 @@ impl SparseCholesky {
             Par::Seq,
             MemStack::new(memory),
         );
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(SolveError::Factorization)
-        }
-    }
-
-    /// [`solve_factored`](Self::solve_factored) one column at a time, the
-    /// columns in parallel on Bevy's compute pool when `parallel` is set and
-    /// the system has at least [`PARALLEL_MIN`](super::PARALLEL_MIN) rows
-    /// (projective dynamics' x, y and z on a large cloth). Each column gets
-    /// the same operations either way, so the result is bitwise the same.
-    pub fn solve_factored_columns(
-        &mut self,
-        rhs: &mut [f64],
-        columns: usize,
-        parallel: bool,
-    ) -> Result<(), SolveError> {
-        let (Some(sym), true) = (self.symbolic.as_ref(), self.factored) else {
-            return Err(SolveError::Factorization);
-        };
-        if columns == 0 || columns > self.column_memory.len() || !rhs.len().is_multiple_of(columns)
-        {
-            return Err(SolveError::Factorization);
-        }
-        let rows = rhs.len() / columns;
-        let llt = LltRef::new(sym, &self.factor);
-        let solve = move |column: &mut [f64], memory: &mut MemBuffer| {
-            llt.solve_in_place_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(column, rows, 1),
-                Par::Seq,
-                MemStack::new(memory),
-            );
-        };
-        let work = rhs.chunks_mut(rows).zip(self.column_memory.iter_mut());
-        match super::kernels::parallel_pool(parallel, rows) {
-            Some(pool) => {
-                let solve = &solve;
-                pool.scope(|scope| {
-                    for (column, memory) in work {
-                        scope.spawn(async move { solve(column, memory) });
-                    }
-                });
-            }
-            None => work.for_each(|(column, memory)| solve(column, memory)),
-        }
         if rhs.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {

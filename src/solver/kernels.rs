@@ -14,10 +14,7 @@ pub(crate) const CHUNK: usize = 4096;
 /// chunk costs more than it saves.
 pub const PARALLEL_MIN: usize = 32_768;
 
-pub(crate) fn parallel_pool(
-    parallel: bool,
-    len: usize,
-) -> Option<&'static bevy::tasks::ComputeTaskPool> {
+fn parallel_pool(parallel: bool, len: usize) -> Option<&'static bevy::tasks::ComputeTaskPool> {
     if parallel && len >= PARALLEL_MIN {
         bevy::tasks::ComputeTaskPool::try_get().filter(|p| p.thread_num() > 1)
     } else {

@@ -257,7 +257,6 @@ impl ProjectiveWorkspace {
         model: &ClothModel,
         x: &[Vec3A],
         spheres: &[PenaltySphere],
-        parallel: bool,
     ) -> Result<(), SolveError> {
         let springs = model.topology().springs();
         let d = &mut self.d;
@@ -283,9 +282,7 @@ impl ProjectiveWorkspace {
             self.rhs[m + f] = acc.y;
             self.rhs[2 * m + f] = acc.z;
         }
-        // x, y and z separately (in parallel on a large cloth).
-        self.cholesky
-            .solve_factored_columns(&mut self.rhs, 3, parallel)
+        self.cholesky.solve_factored(&mut self.rhs, 3)
     }
 }
 
@@ -364,7 +361,7 @@ impl Method for ProjectiveSolver {
         ws.update_norms.clear();
         let mut omega = 1.0f32;
         for k in 0..self.iterations {
-            ws.local_global(model, x, spheres, params.parallel)?;
+            ws.local_global(model, x, spheres)?;
             if k == delay && chebyshev == Some(Rho::Auto) {
                 rho = rho_from_update_norms(&ws.update_norms);
             }
