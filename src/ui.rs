@@ -21,6 +21,7 @@ use crate::methods::{AnyMethod, AnyMethodData, PRESETS};
 use crate::model::{ClothBuildError, ClothModel};
 use crate::solver::implicit::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
+use crate::solver::projective::PD_ANDERSON_WINDOW;
 
 /// The inspector panel and its keyboard shortcuts.
 #[derive(Debug, Clone, Copy)]
@@ -393,7 +394,20 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
         }
         AnyMethod::Projective(p) => {
             iterations_ui(ui, &mut p.iterations, "local–global iterations");
-            chebyshev_ui(ui, &mut p.chebyshev);
+            let mut anderson = p.anderson > 0;
+            if ui
+                .checkbox(&mut anderson, "Anderson acceleration (stiff cloth)")
+                .changed()
+            {
+                p.anderson = if anderson { PD_ANDERSON_WINDOW } else { 0 };
+                // One acceleration at a time.
+                p.chebyshev = if anderson { None } else { Some(Rho::Auto) };
+            }
+            if p.anderson > 0 {
+                ui.add(egui::Slider::new(&mut p.anderson, 1..=16).text("Anderson window"));
+            } else {
+                chebyshev_ui(ui, &mut p.chebyshev);
+            }
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}

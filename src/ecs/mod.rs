@@ -91,8 +91,12 @@ impl ClothNotConverged {
     /// `exact` on small cloths).
     pub fn remedy(&self) -> &'static str {
         if self.method == "pd" {
-            "raise the iterations, lower the stiffness or the time step, or use 'linear-direct' \
-             or 'exact' (direct solves, right at any stiffness, for small cloths)"
+            "raise the iterations, lower the stiffness or the time step, or use 'pd-anderson' \
+             (Anderson-accelerated, for stiff cloth), or 'exact' (Newton, right at any \
+             stiffness, for small cloths)"
+        } else if self.method == "pd-anderson" {
+            "raise the iterations, lower the stiffness or the time step, or use 'exact' \
+             (Newton with direct solves, right at any stiffness, for small cloths)"
         } else {
             "raise the iterations, lower the stiffness or the time step, or use the 'pd' method \
              (projective dynamics), which stays right about a decade stiffer"
