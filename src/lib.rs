@@ -90,6 +90,10 @@
 //!   [`SphereResponse::Projection`] (the lab's impulse projection, after the
 //!   step) or [`SphereResponse::Penalty`] (the assignment's penalty force,
 //!   inside the step)
+//! - [`PlaneCollider`] / [`PlaneCollisionPlugin`]: a half-space (the ground,
+//!   a slope) through its entity, normal along the entity's local `+Y`,
+//!   projected after the step with Coulomb friction
+//!   ([`collision::project_planes`]); every method.
 //!
 //! ## The assignment's golden first step
 //!
@@ -276,7 +280,7 @@ pub use ecs::{
     Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard,
     ClothMethod, ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats,
     ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, GuardAction, MethodPlugin,
-    SphereCollider, SphereCollisionPlugin, SphereResponse,
+    PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -295,7 +299,8 @@ pub mod prelude {
     pub use crate::ecs::{
         Cloth, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged,
         ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, DivergenceReason,
-        GuardAction, SphereCollider, SphereCollisionPlugin, SphereResponse,
+        GuardAction, PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+        SphereResponse,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
@@ -328,6 +333,7 @@ pub mod prelude {
 /// | [`ProjectivePlugin`] | Steps cloths with a [`ProjectiveSolver`] (projective dynamics). |
 /// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
+/// | [`PlaneCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), with friction. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
 /// by disabling some: `ClothPlugins::default().build().disable::<PbdPlugin>()`.
@@ -356,6 +362,7 @@ impl PluginGroup for ClothPlugins {
         let group = PluginGroupBuilder::start::<Self>().add(ClothCorePlugin::new(self.schedule));
         methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
+            .add(PlaneCollisionPlugin::new(self.schedule))
     }
 }
 

@@ -88,7 +88,8 @@ pub fn run(mut app: App) -> ExitCode {
     }
 }
 
-/// A sun with shadows, soft ambient light, and a ground plane at `ground_y`.
+/// A sun with shadows, soft ambient light, and a ground plane at `ground_y`
+/// that cloths collide with (friction 0.5).
 pub fn light_and_ground(
     commands: &mut Commands,
     meshes: &mut Assets<Mesh>,
@@ -116,6 +117,8 @@ pub fn light_and_ground(
             ..default()
         })),
         Transform::from_xyz(0.0, ground_y, 0.0),
+        // The cloth lands on the floor instead of falling through it.
+        PlaneCollider::new(0.5),
         bevy::picking::Pickable::IGNORE,
     ));
 }

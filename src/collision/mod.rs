@@ -1,5 +1,6 @@
 //! Sphere colliders: impulse projection (the lab's equation 4) after a step,
-//! and penalty forces (the assignment's) inside a step.
+//! and penalty forces (the assignment's) inside a step; planes (half-spaces,
+//! the ground) by projection with Coulomb friction.
 //!
 //! # Projection
 //!
@@ -9,7 +10,9 @@
 //!
 //! `vᵢ ← vᵢ + (c + r(xᵢ − c)/‖xᵢ − c‖ − xᵢ)/dt`, `xᵢ ← c + r(xᵢ − c)/‖xᵢ − c‖`.
 //!
-//! No friction. A vertex exactly at the centre is pushed along `+y`.
+//! No friction on spheres. A vertex exactly at the centre is pushed along
+//! `+y`. Planes project the same way and add Coulomb friction
+//! ([`project_planes`]).
 
 use bevy::math::{DVec3, Vec3A};
 
@@ -151,6 +154,70 @@ pub fn project_spheres(
                 *v += (target - *x) * inv_dt;
                 *x = target;
                 count += 1;
+            }
+        }
+    }
+    count
+}
+
+/// A half-space `{x : n·(x − p) ≥ 0}` (the ground, a floor, a slope) with
+/// Coulomb friction, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    /// A point on the surface.
+    pub point: Vec3A,
+    /// The unit normal, pointing out of the solid side.
+    pub normal: Vec3A,
+    /// Friction coefficient `μ ≥ 0`.
+    pub friction: f32,
+}
+
+/// Projects every free vertex out of every plane, `thickness` above its
+/// surface, after a step, and returns how many projections were made.
+///
+/// As for spheres (the lab's equation 4), a vertex below the surface is
+/// moved onto it along the normal and its velocity changes by the same
+/// displacement over `dt`; that normal impulse per unit mass is
+/// `j = depth/dt`. **Coulomb friction** then takes up to `μ·j` from the
+/// vertex's tangential velocity, and the matching tangential displacement
+/// (`Δv·dt`) from its position: a vertex whose tangential speed is below
+/// `μ·j` sticks (static friction, which holds a cloth on a slope steeper
+/// than nothing but shallower than `atan μ`), a faster one slides slower
+/// (kinetic). `dt` must be positive.
+pub fn project_planes(
+    model: &ClothModel,
+    state: &mut ClothState,
+    planes: &[Plane],
+    thickness: f32,
+    dt: f32,
+) -> usize {
+    let pinned = model.pinned();
+    let inv_dt = 1.0 / dt;
+    let mut count = 0;
+    let ClothState {
+        positions,
+        velocities,
+    } = state;
+    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+        if pinned[i] {
+            continue;
+        }
+        for plane in planes {
+            let depth = thickness - plane.normal.dot(*x - plane.point);
+            if depth <= 0.0 {
+                continue;
+            }
+            *x += depth * plane.normal;
+            *v += depth * inv_dt * plane.normal;
+            count += 1;
+            let normal_speed = v.dot(plane.normal);
+            let tangential = *v - normal_speed * plane.normal;
+            let speed = tangential.length();
+            if speed > 0.0 && plane.friction > 0.0 {
+                let taken = (plane.friction * depth * inv_dt).min(speed);
+                let dv = tangential * (-taken / speed);
+                *v += dv;
+                *x += dv * dt;
             }
         }
     }

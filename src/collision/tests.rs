@@ -50,3 +50,56 @@ fn pinned_vertices_and_the_centre_case() {
     assert_eq!(state.positions[0], pin);
     assert!((state.positions[220] - (free + Vec3A::Y * 0.1)).length() < 1e-6);
 }
+
+#[test]
+fn planes_project_out_and_friction_takes_at_most_mu_times_the_normal_impulse() {
+    let model = ClothBuilder::lab_grid(2).build().unwrap();
+    let dt = 0.01;
+    let plane = |friction| Plane {
+        point: Vec3A::ZERO,
+        normal: Vec3A::Y,
+        friction,
+    };
+    // Vertex 0 is 0.001 below the ground, sliding along x at 1 unit/s.
+    let start = |state: &mut ClothState| {
+        for (x, v) in state.positions.iter_mut().zip(&mut state.velocities) {
+            *x = Vec3A::new(x.x, 1.0, x.z);
+            *v = Vec3A::ZERO;
+        }
+        state.positions[0].y = -0.001;
+        state.velocities[0] = Vec3A::new(1.0, -0.1, 0.0);
+    };
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    start(&mut state);
+    assert_eq!(
+        project_planes(&model, &mut state, &[plane(0.0)], 0.0, dt),
+        1
+    );
+    assert!(state.positions[0].y.abs() < 1e-7);
+    assert!(
+        (state.velocities[0].x - 1.0).abs() < 1e-6,
+        "frictionless keeps its slide"
+    );
+    // Kinetic: j = depth/dt = 0.1, μ = 2 takes 0.2 of the 1.0.
+    start(&mut state);
+    let x0 = state.positions[0].x;
+    project_planes(&model, &mut state, &[plane(2.0)], 0.0, dt);
+    assert!(
+        (state.velocities[0].x - 0.8).abs() < 1e-5,
+        "{}",
+        state.velocities[0]
+    );
+    assert!((state.positions[0].x - (x0 - 0.2 * dt)).abs() < 1e-6);
+    // Static: μ·j ≥ the tangential speed stops it.
+    start(&mut state);
+    project_planes(&model, &mut state, &[plane(20.0)], 0.0, dt);
+    assert!(state.velocities[0].x.abs() < 1e-6);
+    // Thickness keeps vertices above the surface; other vertices untouched.
+    start(&mut state);
+    assert_eq!(
+        project_planes(&model, &mut state, &[plane(0.0)], 0.05, dt),
+        1
+    );
+    assert!((state.positions[0].y - 0.05).abs() < 1e-6);
+    assert_eq!(state.positions[1].y, 1.0);
+}

@@ -1,4 +1,4 @@
-//! Sphere colliders as a component and a plugin.
+//! Sphere and plane colliders as components and plugins.
 
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
@@ -6,7 +6,7 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
 use super::{Cloth, ClothCorePlugin, ClothParams, ClothStats, ClothSystems};
-use crate::collision::{PenaltySphere, Sphere, project_spheres};
+use crate::collision::{PenaltySphere, Plane, Sphere, project_planes, project_spheres};
 
 /// How a sphere acts on the cloth.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq)]
@@ -35,6 +35,10 @@ pub struct ClothColliders {
     /// Spheres that push with a penalty force during the step (radius
     /// without the cloth's particle radius).
     pub penalty: Vec<PenaltySphere>,
+    /// Planes that project vertices out after the step, with friction
+    /// (their thickness already in `point`), gathered from
+    /// [`PlaneCollider`]s by [`PlaneCollisionPlugin`].
+    pub planes: Vec<Plane>,
 }
 
 /// A sphere that every cloth collides with. Its centre is the entity's
@@ -187,6 +191,161 @@ fn project_cloths(
                 &cloth.model,
                 &mut cloth.state,
                 &spheres.projection,
+                params.particle_radius,
+                dt,
+            );
+            stats.contacts += contacts as u32;
+        });
+}
+
+/// A half-space every cloth collides with: the ground, a floor, a slope. Its
+/// surface passes through the entity's global translation with the normal
+/// along the entity's local `+Y` (rotate the entity to tilt it); the solid
+/// side is below. Vertices are kept [`thickness`](Self::thickness) plus the
+/// cloth's [`ClothParams::particle_radius`] above the surface, projected
+/// after the step like projection spheres, with Coulomb friction
+/// ([`project_planes`]). Works with every method. Counted in
+/// [`ClothStats::contacts`].
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Debug, PartialEq, Default)]
+#[require(Transform)]
+pub struct PlaneCollider {
+    /// Friction coefficient `μ ≥ 0`: a cloth rests on a slope of angle `θ`
+    /// while `μ ≥ tan θ` (0: frictionless).
+    pub friction: f32,
+    /// Extra distance above the surface at which contact happens (`≥ 0`).
+    pub thickness: f32,
+}
+
+impl Default for PlaneCollider {
+    /// `μ = 0.5`, no thickness.
+    fn default() -> Self {
+        Self {
+            friction: 0.5,
+            thickness: 0.0,
+        }
+    }
+}
+
+impl PlaneCollider {
+    /// A plane with this friction coefficient and no thickness.
+    pub const fn new(friction: f32) -> Self {
+        Self {
+            friction,
+            thickness: 0.0,
+        }
+    }
+}
+
+/// Adds plane collision: every cloth against every [`PlaneCollider`], in
+/// [`ClothSystems::Collide`] (after the projection spheres).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PlaneCollisionPlugin {
+    schedule: Interned<dyn ScheduleLabel>,
+}
+
+impl PlaneCollisionPlugin {
+    /// Runs in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+        }
+    }
+}
+
+impl Default for PlaneCollisionPlugin {
+    /// `FixedUpdate`.
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl Plugin for PlaneCollisionPlugin {
+    fn build(&self, app: &mut App) {
+        ClothCorePlugin::new_interned(self.schedule).add_once(app);
+        app.register_type::<PlaneCollider>().add_systems(
+            self.schedule,
+            (
+                gather_planes.in_set(ClothSystems::SyncIn),
+                project_cloths_on_planes
+                    .in_set(ClothSystems::Collide)
+                    .after(project_cloths)
+                    .run_if(any_with_component::<Cloth>),
+            )
+                .run_if(planes_present),
+        );
+    }
+}
+
+/// True while there are plane colliders, or planes left from removed ones.
+fn planes_present(colliders: Query<(), With<PlaneCollider>>, spheres: Res<ClothColliders>) -> bool {
+    !colliders.is_empty() || !spheres.planes.is_empty()
+}
+
+/// Gathers the plane colliders into [`ClothColliders::planes`]. A plane with
+/// a negative or non-finite friction or thickness, or a non-finite
+/// transform, is skipped with a warning (once per entity).
+fn gather_planes(
+    helper: TransformHelper,
+    colliders: Query<(Entity, &PlaneCollider)>,
+    mut spheres: ResMut<ClothColliders>,
+    mut warned: Local<Vec<Entity>>,
+) {
+    let planes = &mut spheres.bypass_change_detection().planes;
+    planes.clear();
+    for (entity, collider) in &colliders {
+        let Ok(global) = helper.compute_global_transform(entity) else {
+            continue;
+        };
+        let (_, rotation, translation) = global.to_scale_rotation_translation();
+        let normal = Vec3A::from(rotation * Vec3::Y).normalize_or_zero();
+        let point = Vec3A::from(translation) + collider.thickness * normal;
+        let PlaneCollider {
+            friction,
+            thickness,
+        } = *collider;
+        let valid = friction.is_finite()
+            && friction >= 0.0
+            && thickness.is_finite()
+            && thickness >= 0.0
+            && point.is_finite()
+            && normal != Vec3A::ZERO;
+        if valid {
+            planes.push(Plane {
+                point,
+                normal,
+                friction,
+            });
+        } else if !warned.contains(&entity) {
+            warn!(
+                "plane collider {entity} skipped: friction {friction} and thickness {thickness} must be finite and non-negative, and its transform finite"
+            );
+            warned.push(entity);
+        }
+    }
+}
+
+/// Projects every running cloth out of every plane.
+fn project_cloths_on_planes(
+    time: Res<Time>,
+    colliders: Res<ClothColliders>,
+    mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
+) {
+    let dt = time.delta_secs();
+    if dt <= 0.0 || colliders.planes.is_empty() {
+        return;
+    }
+    cloths
+        .par_iter_mut()
+        .for_each(|(mut cloth, params, mut stats)| {
+            if !cloth.initialized || !stats.is_running() {
+                return;
+            }
+            let cloth = &mut *cloth;
+            let contacts = project_planes(
+                &cloth.model,
+                &mut cloth.state,
+                &colliders.planes,
                 params.particle_radius,
                 dt,
             );

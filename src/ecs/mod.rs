@@ -14,7 +14,10 @@ mod schedule;
 use bevy::prelude::*;
 
 pub use crate::solver::guard::DivergenceReason;
-pub use collision::{ClothColliders, SphereCollider, SphereCollisionPlugin, SphereResponse};
+pub use collision::{
+    ClothColliders, PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+    SphereResponse,
+};
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};

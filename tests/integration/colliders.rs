@@ -1,0 +1,90 @@
+//! Plane colliders: the ground stops a cloth, friction holds it on a slope.
+
+use bevy::math::Vec3A;
+use bevy::prelude::*;
+use bevy_cloth::prelude::*;
+
+use crate::common::{app, positions, run_steps, stats};
+
+fn spawn_unpinned(app: &mut App, n: usize, at: Transform) -> Entity {
+    let cloth = Cloth::build(ClothBuilder::lab_grid(n)).unwrap();
+    app.world_mut()
+        .spawn((cloth, ImplicitSolver::chebyshev_auto(32), at))
+        .id()
+}
+
+#[test]
+fn the_ground_stops_a_falling_cloth_at_its_surface() {
+    let mut app = app();
+    app.world_mut()
+        .spawn((PlaneCollider::new(0.5), Transform::from_xyz(0.0, -2.0, 0.0)));
+    let cloth = spawn_unpinned(&mut app, 11, Transform::default());
+    run_steps(&mut app, 60);
+    let lowest = positions(&app, cloth)
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min);
+    assert!(lowest >= -2.0 - 1e-4, "a vertex below the ground: {lowest}");
+    assert!(lowest < -1.99, "the cloth reached the ground: {lowest}");
+    let s = stats(&app, cloth);
+    assert!(s.contacts > 0 && s.is_running(), "{s:?}");
+}
+
+/// Mean displacement along the slope's downhill direction after 2 s, for a
+/// cloth resting on a 20° slope with friction `mu`.
+fn slide_on_a_slope(mu: f32) -> f32 {
+    let mut app = app();
+    let tilt = Transform::from_rotation(Quat::from_rotation_z(20f32.to_radians()));
+    app.world_mut().spawn((PlaneCollider::new(mu), tilt));
+    let cloth = spawn_unpinned(&mut app, 11, tilt);
+    let before = positions(&app, cloth);
+    run_steps(&mut app, 60);
+    let after = positions(&app, cloth);
+    let normal = Vec3A::from(tilt.rotation * Vec3::Y);
+    let downhill = (Vec3A::NEG_Y - Vec3A::NEG_Y.dot(normal) * normal).normalize();
+    for p in &after {
+        assert!(normal.dot(*p) >= -1e-4, "a vertex under the slope: {p}");
+    }
+    after
+        .iter()
+        .zip(&before)
+        .map(|(a, b)| (*a - *b).dot(downhill))
+        .sum::<f32>()
+        / after.len() as f32
+}
+
+#[test]
+fn static_friction_holds_a_cloth_on_a_slope_and_none_lets_it_slide() {
+    // tan 20° ≈ 0.36: μ = 0.8 holds it, μ = 0 does not.
+    let held = slide_on_a_slope(0.8);
+    let slid = slide_on_a_slope(0.0);
+    assert!(held.abs() < 0.05, "moved {held} with μ = 0.8");
+    assert!(slid > 2.0, "slid only {slid} without friction");
+}
+
+#[test]
+fn a_plane_with_bad_values_is_skipped_not_a_panic() {
+    let mut app = app();
+    for bad in [
+        PlaneCollider {
+            friction: f32::NAN,
+            thickness: 0.0,
+        },
+        PlaneCollider {
+            friction: 0.5,
+            thickness: -1.0,
+        },
+    ] {
+        app.world_mut()
+            .spawn((bad, Transform::from_xyz(0.0, -2.0, 0.0)));
+    }
+    let cloth = spawn_unpinned(&mut app, 11, Transform::default());
+    run_steps(&mut app, 60);
+    let ys: Vec<f32> = positions(&app, cloth).iter().map(|p| p.y).collect();
+    assert!(ys.iter().all(|y| y.is_finite()));
+    assert!(
+        ys.iter().any(|&y| y < -2.5),
+        "the skipped planes stopped it"
+    );
+    assert_eq!(stats(&app, cloth).contacts, 0);
+}
