@@ -90,10 +90,10 @@
 //!   [`SphereResponse::Projection`] (the lab's impulse projection, after the
 //!   step) or [`SphereResponse::Penalty`] (the assignment's penalty force,
 //!   inside the step)
-//! - [`PlaneCollider`] / [`PlaneCollisionPlugin`]: a half-space (the ground,
-//!   a slope) through its entity, normal along the entity's local `+Y`,
-//!   projected after the step with Coulomb friction
-//!   ([`collision::project_planes`]); every method.
+//! - [`PlaneCollider`] (a half-space: the ground, a slope, through its
+//!   entity with the normal along its local `+Y`), [`CapsuleCollider`] and
+//!   [`CuboidCollider`] / [`ShapeCollisionPlugin`]: projected after the step
+//!   with Coulomb friction ([`collision::project_shapes`]); every method.
 //!
 //! ## The assignment's golden first step
 //!
@@ -277,10 +277,11 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard,
-    ClothMethod, ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats,
-    ClothStatus, ClothSystems, ClothWorkspace, DivergenceReason, GuardAction, MethodPlugin,
-    PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
+    CapsuleCollider, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothFollowSystems,
+    ClothGuard, ClothMethod, ClothMethods, ClothNotConverged, ClothParams, ClothSimulation,
+    ClothStats, ClothStatus, ClothSystems, ClothWorkspace, CuboidCollider, DivergenceReason,
+    GuardAction, MethodPlugin, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
+    SphereCollisionPlugin, SphereResponse,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -297,10 +298,10 @@ pub use solver::symplectic::SymplecticSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        Cloth, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged,
-        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, DivergenceReason,
-        GuardAction, PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin,
-        SphereResponse,
+        CapsuleCollider, Cloth, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard,
+        ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
+        CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
+        SphereCollider, SphereCollisionPlugin, SphereResponse,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
@@ -333,7 +334,7 @@ pub mod prelude {
 /// | [`ProjectivePlugin`] | Steps cloths with a [`ProjectiveSolver`] (projective dynamics). |
 /// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
-/// | [`PlaneCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), with friction. |
+/// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
 /// by disabling some: `ClothPlugins::default().build().disable::<PbdPlugin>()`.
@@ -362,7 +363,7 @@ impl PluginGroup for ClothPlugins {
         let group = PluginGroupBuilder::start::<Self>().add(ClothCorePlugin::new(self.schedule));
         methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
-            .add(PlaneCollisionPlugin::new(self.schedule))
+            .add(ShapeCollisionPlugin::new(self.schedule))
     }
 }
 

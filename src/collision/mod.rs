@@ -1,6 +1,6 @@
 //! Sphere colliders: impulse projection (the lab's equation 4) after a step,
 //! and penalty forces (the assignment's) inside a step; planes (half-spaces,
-//! the ground) by projection with Coulomb friction.
+//! the ground), capsules and boxes by projection with Coulomb friction.
 //!
 //! # Projection
 //!
@@ -11,8 +11,8 @@
 //! `vᵢ ← vᵢ + (c + r(xᵢ − c)/‖xᵢ − c‖ − xᵢ)/dt`, `xᵢ ← c + r(xᵢ − c)/‖xᵢ − c‖`.
 //!
 //! No friction on spheres. A vertex exactly at the centre is pushed along
-//! `+y`. Planes project the same way and add Coulomb friction
-//! ([`project_planes`]).
+//! `+y`. Planes, capsules and boxes project the same way and add Coulomb
+//! friction ([`project_shapes`]).
 
 use bevy::math::{DVec3, Vec3A};
 
@@ -172,22 +172,117 @@ pub struct Plane {
     pub friction: f32,
 }
 
-/// Projects every free vertex out of every plane, `thickness` above its
+/// A capsule (the segment `a`–`b` grown by `radius`: a limb) with Coulomb
+/// friction, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Capsule {
+    /// One end of the axis.
+    pub a: Vec3A,
+    /// The other end (equal to `a` for a sphere).
+    pub b: Vec3A,
+    /// Radius around the axis.
+    pub radius: f32,
+    /// Friction coefficient `μ ≥ 0`.
+    pub friction: f32,
+}
+
+/// An oriented box with Coulomb friction, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cuboid {
+    /// Centre.
+    pub center: Vec3A,
+    /// Unit local axes.
+    pub axes: [Vec3A; 3],
+    /// Half the side lengths along `axes`.
+    pub half_extents: Vec3A,
+    /// Friction coefficient `μ ≥ 0`.
+    pub friction: f32,
+}
+
+/// A solid a cloth is projected out of, with friction (see [`project_shapes`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// A half-space.
+    Plane(Plane),
+    /// A capsule.
+    Capsule(Capsule),
+    /// An oriented box.
+    Cuboid(Cuboid),
+}
+
+impl Shape {
+    /// For a point within `thickness` of the solid: the unit direction to
+    /// push it along and how far (`depth > 0`) to reach `thickness` outside.
+    pub fn contact(&self, x: Vec3A, thickness: f32) -> Option<(Vec3A, f32)> {
+        let (normal, depth) = match self {
+            Shape::Plane(p) => (p.normal, thickness - p.normal.dot(x - p.point)),
+            Shape::Capsule(c) => {
+                let axis = c.b - c.a;
+                let len_sq = axis.length_squared();
+                let t = if len_sq > 0.0 {
+                    ((x - c.a).dot(axis) / len_sq).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let d = x - (c.a + t * axis);
+                let distance = d.length();
+                // On the axis: out along any direction across it.
+                let normal = if distance > 0.0 {
+                    d / distance
+                } else {
+                    axis.any_orthonormal_vector()
+                };
+                (normal, c.radius + thickness - distance)
+            }
+            Shape::Cuboid(b) => {
+                let d = x - b.center;
+                let local = Vec3A::new(d.dot(b.axes[0]), d.dot(b.axes[1]), d.dot(b.axes[2]));
+                let grown = b.half_extents + Vec3A::splat(thickness);
+                let gap = grown - local.abs();
+                if gap.min_element() <= 0.0 {
+                    return None;
+                }
+                // Inside: out through the nearest face.
+                let k = if gap.x <= gap.y && gap.x <= gap.z {
+                    0
+                } else if gap.y <= gap.z {
+                    1
+                } else {
+                    2
+                };
+                let sign = if local[k] < 0.0 { -1.0 } else { 1.0 };
+                (b.axes[k] * sign, gap[k])
+            }
+        };
+        (depth > 0.0).then_some((normal, depth))
+    }
+
+    /// The friction coefficient.
+    pub fn friction(&self) -> f32 {
+        match self {
+            Shape::Plane(p) => p.friction,
+            Shape::Capsule(c) => c.friction,
+            Shape::Cuboid(b) => b.friction,
+        }
+    }
+}
+
+/// Projects every free vertex out of every shape, `thickness` outside its
 /// surface, after a step, and returns how many projections were made.
 ///
-/// As for spheres (the lab's equation 4), a vertex below the surface is
-/// moved onto it along the normal and its velocity changes by the same
-/// displacement over `dt`; that normal impulse per unit mass is
-/// `j = depth/dt`. **Coulomb friction** then takes up to `μ·j` from the
-/// vertex's tangential velocity, and the matching tangential displacement
-/// (`Δv·dt`) from its position: a vertex whose tangential speed is below
-/// `μ·j` sticks (static friction, which holds a cloth on a slope steeper
-/// than nothing but shallower than `atan μ`), a faster one slides slower
-/// (kinetic). `dt` must be positive.
-pub fn project_planes(
+/// As for spheres (the lab's equation 4), a vertex inside is moved out along
+/// the contact normal and its velocity changes by the same displacement over
+/// `dt`; that normal impulse per unit mass is `j = depth/dt`. **Coulomb
+/// friction** then takes up to `μ·j` from the vertex's tangential velocity,
+/// and the matching tangential displacement (`Δv·dt`) from its position: a
+/// vertex whose tangential speed is below `μ·j` sticks (static friction,
+/// which holds a cloth on a slope of angle `θ` while `μ ≥ tan θ`), a faster
+/// one slides slower (kinetic). The shapes are static within the step: a
+/// moving shape pushes by where it is. `dt` must be positive.
+pub fn project_shapes(
     model: &ClothModel,
     state: &mut ClothState,
-    planes: &[Plane],
+    shapes: &[Shape],
     thickness: f32,
     dt: f32,
 ) -> usize {
@@ -202,19 +297,18 @@ pub fn project_planes(
         if pinned[i] {
             continue;
         }
-        for plane in planes {
-            let depth = thickness - plane.normal.dot(*x - plane.point);
-            if depth <= 0.0 {
+        for shape in shapes {
+            let Some((normal, depth)) = shape.contact(*x, thickness) else {
                 continue;
-            }
-            *x += depth * plane.normal;
-            *v += depth * inv_dt * plane.normal;
+            };
+            *x += depth * normal;
+            *v += depth * inv_dt * normal;
             count += 1;
-            let normal_speed = v.dot(plane.normal);
-            let tangential = *v - normal_speed * plane.normal;
+            let tangential = *v - v.dot(normal) * normal;
             let speed = tangential.length();
-            if speed > 0.0 && plane.friction > 0.0 {
-                let taken = (plane.friction * depth * inv_dt).min(speed);
+            let friction = shape.friction();
+            if speed > 0.0 && friction > 0.0 {
+                let taken = (friction * depth * inv_dt).min(speed);
                 let dv = tangential * (-taken / speed);
                 *v += dv;
                 *x += dv * dt;

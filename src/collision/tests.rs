@@ -55,10 +55,12 @@ fn pinned_vertices_and_the_centre_case() {
 fn planes_project_out_and_friction_takes_at_most_mu_times_the_normal_impulse() {
     let model = ClothBuilder::lab_grid(2).build().unwrap();
     let dt = 0.01;
-    let plane = |friction| Plane {
-        point: Vec3A::ZERO,
-        normal: Vec3A::Y,
-        friction,
+    let plane = |friction| {
+        Shape::Plane(Plane {
+            point: Vec3A::ZERO,
+            normal: Vec3A::Y,
+            friction,
+        })
     };
     // Vertex 0 is 0.001 below the ground, sliding along x at 1 unit/s.
     let start = |state: &mut ClothState| {
@@ -72,7 +74,7 @@ fn planes_project_out_and_friction_takes_at_most_mu_times_the_normal_impulse() {
     let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     start(&mut state);
     assert_eq!(
-        project_planes(&model, &mut state, &[plane(0.0)], 0.0, dt),
+        project_shapes(&model, &mut state, &[plane(0.0)], 0.0, dt),
         1
     );
     assert!(state.positions[0].y.abs() < 1e-7);
@@ -83,7 +85,7 @@ fn planes_project_out_and_friction_takes_at_most_mu_times_the_normal_impulse() {
     // Kinetic: j = depth/dt = 0.1, μ = 2 takes 0.2 of the 1.0.
     start(&mut state);
     let x0 = state.positions[0].x;
-    project_planes(&model, &mut state, &[plane(2.0)], 0.0, dt);
+    project_shapes(&model, &mut state, &[plane(2.0)], 0.0, dt);
     assert!(
         (state.velocities[0].x - 0.8).abs() < 1e-5,
         "{}",
@@ -92,14 +94,52 @@ fn planes_project_out_and_friction_takes_at_most_mu_times_the_normal_impulse() {
     assert!((state.positions[0].x - (x0 - 0.2 * dt)).abs() < 1e-6);
     // Static: μ·j ≥ the tangential speed stops it.
     start(&mut state);
-    project_planes(&model, &mut state, &[plane(20.0)], 0.0, dt);
+    project_shapes(&model, &mut state, &[plane(20.0)], 0.0, dt);
     assert!(state.velocities[0].x.abs() < 1e-6);
     // Thickness keeps vertices above the surface; other vertices untouched.
     start(&mut state);
     assert_eq!(
-        project_planes(&model, &mut state, &[plane(0.0)], 0.05, dt),
+        project_shapes(&model, &mut state, &[plane(0.0)], 0.05, dt),
         1
     );
     assert!((state.positions[0].y - 0.05).abs() < 1e-6);
     assert_eq!(state.positions[1].y, 1.0);
+}
+
+#[test]
+fn capsules_and_boxes_push_points_out_to_their_surface() {
+    let capsule = Shape::Capsule(Capsule {
+        a: Vec3A::new(-1.0, 0.0, 0.0),
+        b: Vec3A::new(1.0, 0.0, 0.0),
+        radius: 0.5,
+        friction: 0.0,
+    });
+    let (n, depth) = capsule.contact(Vec3A::new(0.3, 0.2, 0.0), 0.0).unwrap();
+    assert!((n - Vec3A::Y).length() < 1e-6 && (depth - 0.3).abs() < 1e-6);
+    // Past an end: out from the end's centre.
+    let (n, depth) = capsule.contact(Vec3A::new(1.3, 0.0, 0.0), 0.1).unwrap();
+    assert!((n - Vec3A::X).length() < 1e-6 && (depth - 0.3).abs() < 1e-6);
+    assert!(capsule.contact(Vec3A::new(0.0, 0.6, 0.0), 0.0).is_none());
+    // On the axis: out across it, never NaN.
+    let (n, depth) = capsule.contact(Vec3A::ZERO, 0.0).unwrap();
+    assert!(n.is_finite() && n.dot(Vec3A::X).abs() < 1e-6 && depth == 0.5);
+    // A box rotated 45° about y: out through the nearest face.
+    let (s, c) = (0.5f32.sqrt(), 0.5f32.sqrt());
+    let cuboid = Shape::Cuboid(Cuboid {
+        center: Vec3A::new(0.0, 1.0, 0.0),
+        axes: [Vec3A::new(c, 0.0, -s), Vec3A::Y, Vec3A::new(s, 0.0, c)],
+        half_extents: Vec3A::new(1.0, 0.5, 2.0),
+        friction: 0.0,
+    });
+    let (n, depth) = cuboid.contact(Vec3A::new(0.0, 1.4, 0.0), 0.0).unwrap();
+    assert!((n - Vec3A::Y).length() < 1e-6 && (depth - 0.1).abs() < 1e-6);
+    let p = Vec3A::new(c, 1.0, -s) * 0.9 + Vec3A::new(0.0, 1.0, 0.0) * 0.1;
+    let (n, depth) = cuboid.contact(p, 0.0).unwrap();
+    let out = p + depth * n;
+    assert!((depth - 0.1).abs() < 1e-5, "{depth}");
+    assert!(
+        cuboid.contact(out, 0.0).is_none_or(|(_, d)| d < 1e-5),
+        "pushed out to {out}"
+    );
+    assert!(cuboid.contact(Vec3A::new(0.0, 3.0, 0.0), 0.0).is_none());
 }

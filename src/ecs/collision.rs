@@ -1,4 +1,4 @@
-//! Sphere and plane colliders as components and plugins.
+//! Sphere, plane, capsule and box colliders as components and plugins.
 
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
@@ -6,7 +6,9 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
 use super::{Cloth, ClothCorePlugin, ClothParams, ClothStats, ClothSystems};
-use crate::collision::{PenaltySphere, Plane, Sphere, project_planes, project_spheres};
+use crate::collision::{
+    Capsule, Cuboid, PenaltySphere, Plane, Shape, Sphere, project_shapes, project_spheres,
+};
 
 /// How a sphere acts on the cloth.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq)]
@@ -35,10 +37,11 @@ pub struct ClothColliders {
     /// Spheres that push with a penalty force during the step (radius
     /// without the cloth's particle radius).
     pub penalty: Vec<PenaltySphere>,
-    /// Planes that project vertices out after the step, with friction
-    /// (their thickness already in `point`), gathered from
-    /// [`PlaneCollider`]s by [`PlaneCollisionPlugin`].
-    pub planes: Vec<Plane>,
+    /// Planes, capsules and boxes that project vertices out after the step,
+    /// with friction (their thickness already in their size), gathered from
+    /// [`PlaneCollider`]s, [`CapsuleCollider`]s and [`CuboidCollider`]s by
+    /// [`ShapeCollisionPlugin`].
+    pub shapes: Vec<Shape>,
 }
 
 /// A sphere that every cloth collides with. Its centre is the entity's
@@ -201,11 +204,10 @@ fn project_cloths(
 /// A half-space every cloth collides with: the ground, a floor, a slope. Its
 /// surface passes through the entity's global translation with the normal
 /// along the entity's local `+Y` (rotate the entity to tilt it); the solid
-/// side is below. Vertices are kept [`thickness`](Self::thickness) plus the
-/// cloth's [`ClothParams::particle_radius`] above the surface, projected
-/// after the step like projection spheres, with Coulomb friction
-/// ([`project_planes`]). Works with every method. Counted in
-/// [`ClothStats::contacts`].
+/// side is below. Projected after the step with Coulomb friction
+/// ([`project_shapes`]), for every method; counted in
+/// [`ClothStats::contacts`]. Vertices are kept `thickness` plus the cloth's
+/// [`ClothParams::particle_radius`] above the surface.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Debug, PartialEq, Default)]
 #[require(Transform)]
@@ -220,10 +222,7 @@ pub struct PlaneCollider {
 impl Default for PlaneCollider {
     /// `μ = 0.5`, no thickness.
     fn default() -> Self {
-        Self {
-            friction: 0.5,
-            thickness: 0.0,
-        }
+        Self::new(0.5)
     }
 }
 
@@ -237,14 +236,72 @@ impl PlaneCollider {
     }
 }
 
-/// Adds plane collision: every cloth against every [`PlaneCollider`], in
+/// A capsule every cloth collides with (a character's limb): its axis runs
+/// along the entity's local `Y` through its translation, `half_length` each
+/// way (as Bevy's `Capsule3d`); rotation is followed, scale ignored.
+/// Projected after the step with Coulomb friction, like [`PlaneCollider`].
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Debug, PartialEq)]
+#[require(Transform)]
+pub struct CapsuleCollider {
+    /// Radius around the axis (`≥ 0`).
+    pub radius: f32,
+    /// Half the axis length (`≥ 0`; 0 is a sphere).
+    pub half_length: f32,
+    /// Friction coefficient `μ ≥ 0`.
+    pub friction: f32,
+    /// Extra contact distance (`≥ 0`).
+    pub thickness: f32,
+}
+
+impl CapsuleCollider {
+    /// A capsule of this radius and half length, `μ = 0.5`, no thickness.
+    pub const fn new(radius: f32, half_length: f32) -> Self {
+        Self {
+            radius,
+            half_length,
+            friction: 0.5,
+            thickness: 0.0,
+        }
+    }
+}
+
+/// A box every cloth collides with (a crate, a table): centred on the
+/// entity, oriented by its rotation (scale ignored), with these half
+/// extents along its local axes. Projected after the step with Coulomb
+/// friction, like [`PlaneCollider`].
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Debug, PartialEq)]
+#[require(Transform)]
+pub struct CuboidCollider {
+    /// Half the side lengths along local `x`, `y`, `z` (each `≥ 0`).
+    pub half_extents: Vec3,
+    /// Friction coefficient `μ ≥ 0`.
+    pub friction: f32,
+    /// Extra contact distance (`≥ 0`).
+    pub thickness: f32,
+}
+
+impl CuboidCollider {
+    /// A box of these half extents, `μ = 0.5`, no thickness.
+    pub const fn new(half_extents: Vec3) -> Self {
+        Self {
+            half_extents,
+            friction: 0.5,
+            thickness: 0.0,
+        }
+    }
+}
+
+/// Adds plane, capsule and box collision: every cloth against every
+/// [`PlaneCollider`], [`CapsuleCollider`] and [`CuboidCollider`], in
 /// [`ClothSystems::Collide`] (after the projection spheres).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct PlaneCollisionPlugin {
+pub struct ShapeCollisionPlugin {
     schedule: Interned<dyn ScheduleLabel>,
 }
 
-impl PlaneCollisionPlugin {
+impl ShapeCollisionPlugin {
     /// Runs in `schedule`.
     pub fn new(schedule: impl ScheduleLabel) -> Self {
         Self {
@@ -253,86 +310,139 @@ impl PlaneCollisionPlugin {
     }
 }
 
-impl Default for PlaneCollisionPlugin {
+impl Default for ShapeCollisionPlugin {
     /// `FixedUpdate`.
     fn default() -> Self {
         Self::new(FixedUpdate)
     }
 }
 
-impl Plugin for PlaneCollisionPlugin {
+impl Plugin for ShapeCollisionPlugin {
     fn build(&self, app: &mut App) {
         ClothCorePlugin::new_interned(self.schedule).add_once(app);
-        app.register_type::<PlaneCollider>().add_systems(
-            self.schedule,
-            (
-                gather_planes.in_set(ClothSystems::SyncIn),
-                project_cloths_on_planes
-                    .in_set(ClothSystems::Collide)
-                    .after(project_cloths)
-                    .run_if(any_with_component::<Cloth>),
-            )
-                .run_if(planes_present),
-        );
+        app.register_type::<PlaneCollider>()
+            .register_type::<CapsuleCollider>()
+            .register_type::<CuboidCollider>()
+            .add_systems(
+                self.schedule,
+                (
+                    gather_shapes.in_set(ClothSystems::SyncIn),
+                    project_cloths_on_shapes
+                        .in_set(ClothSystems::Collide)
+                        .after(project_cloths)
+                        .run_if(any_with_component::<Cloth>),
+                )
+                    .run_if(shapes_present),
+            );
     }
 }
 
-/// True while there are plane colliders, or planes left from removed ones.
-fn planes_present(colliders: Query<(), With<PlaneCollider>>, spheres: Res<ClothColliders>) -> bool {
-    !colliders.is_empty() || !spheres.planes.is_empty()
+type AnyShape = Or<(
+    With<PlaneCollider>,
+    With<CapsuleCollider>,
+    With<CuboidCollider>,
+)>;
+
+/// An entity's shape colliders (any of them).
+type ShapeColliders = (
+    Entity,
+    Option<&'static PlaneCollider>,
+    Option<&'static CapsuleCollider>,
+    Option<&'static CuboidCollider>,
+);
+
+/// True while there are shape colliders, or shapes left from removed ones.
+fn shapes_present(colliders: Query<(), AnyShape>, gathered: Res<ClothColliders>) -> bool {
+    !colliders.is_empty() || !gathered.shapes.is_empty()
 }
 
-/// Gathers the plane colliders into [`ClothColliders::planes`]. A plane with
-/// a negative or non-finite friction or thickness, or a non-finite
-/// transform, is skipped with a warning (once per entity).
-fn gather_planes(
+/// Whether every value is finite and non-negative.
+fn non_negative(values: &[f32]) -> bool {
+    values.iter().all(|v| v.is_finite() && *v >= 0.0)
+}
+
+/// Gathers the shape colliders into [`ClothColliders::shapes`]. A collider
+/// with a negative or non-finite size, friction or thickness, or a
+/// non-finite transform, is skipped with a warning (once per entity).
+fn gather_shapes(
     helper: TransformHelper,
-    colliders: Query<(Entity, &PlaneCollider)>,
-    mut spheres: ResMut<ClothColliders>,
+    colliders: Query<ShapeColliders, AnyShape>,
+    mut gathered: ResMut<ClothColliders>,
     mut warned: Local<Vec<Entity>>,
 ) {
-    let planes = &mut spheres.bypass_change_detection().planes;
-    planes.clear();
-    for (entity, collider) in &colliders {
+    let shapes = &mut gathered.bypass_change_detection().shapes;
+    shapes.clear();
+    for (entity, plane, capsule, cuboid) in &colliders {
         let Ok(global) = helper.compute_global_transform(entity) else {
             continue;
         };
         let (_, rotation, translation) = global.to_scale_rotation_translation();
-        let normal = Vec3A::from(rotation * Vec3::Y).normalize_or_zero();
-        let point = Vec3A::from(translation) + collider.thickness * normal;
-        let PlaneCollider {
-            friction,
-            thickness,
-        } = *collider;
-        let valid = friction.is_finite()
-            && friction >= 0.0
-            && thickness.is_finite()
-            && thickness >= 0.0
-            && point.is_finite()
-            && normal != Vec3A::ZERO;
-        if valid {
-            planes.push(Plane {
-                point,
-                normal,
-                friction,
-            });
-        } else if !warned.contains(&entity) {
-            warn!(
-                "plane collider {entity} skipped: friction {friction} and thickness {thickness} must be finite and non-negative, and its transform finite"
+        let center = Vec3A::from(translation);
+        let axes =
+            [Vec3::X, Vec3::Y, Vec3::Z].map(|a| Vec3A::from(rotation * a).normalize_or_zero());
+        let placed = center.is_finite() && axes.iter().all(|a| *a != Vec3A::ZERO);
+        let mut push = |shape: Option<Shape>, what: &str, values: &[f32]| {
+            if placed && non_negative(values) {
+                shapes.extend(shape);
+            } else if !warned.contains(&entity) {
+                warn!(
+                    "{what} collider {entity} skipped: sizes, friction and thickness {values:?} must be finite and non-negative, and its transform finite"
+                );
+                warned.push(entity);
+            }
+        };
+        if let Some(p) = plane {
+            push(
+                Some(Shape::Plane(Plane {
+                    point: center + p.thickness * axes[1],
+                    normal: axes[1],
+                    friction: p.friction,
+                })),
+                "plane",
+                &[p.friction, p.thickness],
             );
-            warned.push(entity);
+        }
+        if let Some(c) = capsule {
+            push(
+                Some(Shape::Capsule(Capsule {
+                    a: center - c.half_length * axes[1],
+                    b: center + c.half_length * axes[1],
+                    radius: c.radius + c.thickness,
+                    friction: c.friction,
+                })),
+                "capsule",
+                &[c.radius, c.half_length, c.friction, c.thickness],
+            );
+        }
+        if let Some(b) = cuboid {
+            push(
+                Some(Shape::Cuboid(Cuboid {
+                    center,
+                    axes,
+                    half_extents: Vec3A::from(b.half_extents) + Vec3A::splat(b.thickness),
+                    friction: b.friction,
+                })),
+                "box",
+                &[
+                    b.half_extents.x,
+                    b.half_extents.y,
+                    b.half_extents.z,
+                    b.friction,
+                    b.thickness,
+                ],
+            );
         }
     }
 }
 
-/// Projects every running cloth out of every plane.
-fn project_cloths_on_planes(
+/// Projects every running cloth out of every shape.
+fn project_cloths_on_shapes(
     time: Res<Time>,
     colliders: Res<ClothColliders>,
     mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
     let dt = time.delta_secs();
-    if dt <= 0.0 || colliders.planes.is_empty() {
+    if dt <= 0.0 || colliders.shapes.is_empty() {
         return;
     }
     cloths
@@ -342,10 +452,10 @@ fn project_cloths_on_planes(
                 return;
             }
             let cloth = &mut *cloth;
-            let contacts = project_planes(
+            let contacts = project_shapes(
                 &cloth.model,
                 &mut cloth.state,
-                &colliders.planes,
+                &colliders.shapes,
                 params.particle_radius,
                 dt,
             );

@@ -15,8 +15,8 @@ use bevy::prelude::*;
 
 pub use crate::solver::guard::DivergenceReason;
 pub use collision::{
-    ClothColliders, PlaneCollider, PlaneCollisionPlugin, SphereCollider, SphereCollisionPlugin,
-    SphereResponse,
+    CapsuleCollider, ClothColliders, CuboidCollider, PlaneCollider, ShapeCollisionPlugin,
+    SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};

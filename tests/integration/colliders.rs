@@ -88,3 +88,60 @@ fn a_plane_with_bad_values_is_skipped_not_a_panic() {
     );
     assert_eq!(stats(&app, cloth).contacts, 0);
 }
+
+/// Runs a cloth falling onto one collider for 1.5 s; returns its positions.
+fn drop_onto(collider: impl Bundle) -> (Vec<Vec3A>, ClothStats) {
+    let mut app = app();
+    app.world_mut().spawn(collider);
+    let cloth = spawn_unpinned(&mut app, 21, Transform::default());
+    run_steps(&mut app, 45);
+    (positions(&app, cloth), stats(&app, cloth))
+}
+
+#[test]
+fn a_capsule_and_a_box_hold_the_cloth_out() {
+    // A capsule lying along x, rotated from its local y, 3 below the cloth.
+    let (capsule_at, radius) = (Vec3A::new(0.0, -3.0, 0.0), 1.0);
+    let (xs, s) = drop_onto((
+        CapsuleCollider::new(radius, 4.0),
+        Transform::from_translation(capsule_at.into())
+            .with_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+    ));
+    assert!(s.contacts > 0 && s.is_running(), "{s:?}");
+    for p in &xs {
+        let along = p.x.clamp(-4.0, 4.0);
+        let axis_point = capsule_at + Vec3A::new(along, 0.0, 0.0);
+        assert!(
+            p.distance(axis_point) >= radius - 1e-3,
+            "{p} inside the capsule"
+        );
+    }
+    // A box rotated 30° about y, its top 2 below the cloth.
+    let half = Vec3::new(2.0, 1.0, 2.0);
+    let rotation = Quat::from_rotation_y(30f32.to_radians());
+    let (xs, s) = drop_onto((
+        CuboidCollider::new(half),
+        Transform::from_xyz(0.0, -3.0, 0.0).with_rotation(rotation),
+    ));
+    assert!(s.contacts > 0, "{s:?}");
+    let inverse = rotation.inverse();
+    let mut on_top = 0;
+    for p in &xs {
+        let local = inverse * (Vec3::from(*p) - Vec3::new(0.0, -3.0, 0.0));
+        let inside = local.abs().cmplt(half - Vec3::splat(1e-3)).all();
+        assert!(!inside, "{p} inside the box");
+        on_top += usize::from(local.y > 0.99 && local.x.abs() < 2.0 && local.z.abs() < 2.0);
+    }
+    assert!(on_top > 10, "{on_top} vertices rest on the box's top");
+}
+
+#[test]
+fn bad_capsules_and_boxes_are_skipped() {
+    let (xs, s) = drop_onto((
+        CapsuleCollider::new(f32::NAN, 1.0),
+        CuboidCollider::new(Vec3::new(1.0, -1.0, 1.0)),
+        Transform::from_xyz(0.0, -3.0, 0.0),
+    ));
+    assert_eq!(s.contacts, 0);
+    assert!(xs.iter().all(|p| p.is_finite()));
+}
