@@ -82,7 +82,7 @@
 //! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
-//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev-accelerated, factorised once | Liu et al. 2013, Wang 2015 | [`solver::projective`] |
+//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`) or Anderson-accelerated (`pd-anderson`), factorised once | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search | the reference | [`solver::exact`] |
 //!
 //! ## Collision
@@ -197,10 +197,12 @@
 //!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
 //!             pd:                x = x̃; K times: d_e = L_e(x_a − x_b)/‖x_a − x_b‖ per spring;
 //!                                solve (M/h² + Σk AᵀA) x = M/h² x̃ + Mg + Σk Aᵀd (factor
-//!                                kept; Chebyshev blend); v = (x − x₀)/dt
+//!                                kept; Chebyshev blend, or Anderson extrapolation kept
+//!                                only if Φ drops); v = (x − x₀)/dt
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
-//!             (penalty spheres act inside the step: forces, and stiffness in A)
+//!             (penalty spheres act inside the step: forces, and stiffness in A; in pd,
+//!              projective terms with their stiffness on the matrix's diagonal)
 //!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)
@@ -244,8 +246,9 @@
 //! **My cloth stretches a lot.** 32 Jacobi iterations do not converge at
 //! `k = 8000`; use Chebyshev, more iterations, or PBD. For stiffer cloth
 //! use projective dynamics ([`ProjectiveSolver`], preset `pd`), which stays
-//! correct about a decade stiffer than Chebyshev at the same step (see the
-//! stability map).
+//! correct about a decade stiffer than Chebyshev at the same step, or its
+//! Anderson-accelerated preset `pd-anderson` for nearly inextensible cloth
+//! (see the stability map).
 //!
 //! **The linearly implicit method stopped with `SolveFailed`, or went
 //! wild.** With the assignment's exact spring blocks, compressed springs make
