@@ -326,7 +326,10 @@ impl Plugin for ShapeCollisionPlugin {
             .add_systems(
                 self.schedule,
                 (
-                    gather_shapes.in_set(ClothSystems::SyncIn),
+                    // After the spheres' gathering: both write ClothColliders.
+                    gather_shapes
+                        .in_set(ClothSystems::SyncIn)
+                        .after(gather_spheres),
                     project_cloths_on_shapes
                         .in_set(ClothSystems::Collide)
                         .after(project_cloths)
