@@ -226,11 +226,14 @@ impl Shape {
                 };
                 let d = x - (c.a + t * axis);
                 let distance = d.length();
-                // On the axis: out along any direction across it.
+                // On the axis: out along any direction across it (+y for a
+                // capsule of zero length, a sphere, as `project_spheres`).
                 let normal = if distance > 0.0 {
                     d / distance
+                } else if len_sq > 0.0 {
+                    (axis / len_sq.sqrt()).any_orthonormal_vector()
                 } else {
-                    axis.any_orthonormal_vector()
+                    Vec3A::Y
                 };
                 (normal, c.radius + thickness - distance)
             }

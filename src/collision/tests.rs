@@ -123,6 +123,14 @@ fn capsules_and_boxes_push_points_out_to_their_surface() {
     // On the axis: out across it, never NaN.
     let (n, depth) = capsule.contact(Vec3A::ZERO, 0.0).unwrap();
     assert!(n.is_finite() && n.dot(Vec3A::X).abs() < 1e-6 && depth == 0.5);
+    // A zero-length capsule (a sphere) at its centre: up, like a sphere.
+    let ball = Shape::Capsule(Capsule {
+        a: Vec3A::ONE,
+        b: Vec3A::ONE,
+        radius: 0.5,
+        friction: 0.0,
+    });
+    assert_eq!(ball.contact(Vec3A::ONE, 0.0), Some((Vec3A::Y, 0.5)));
     // A box rotated 45° about y: out through the nearest face.
     let (s, c) = (0.5f32.sqrt(), 0.5f32.sqrt());
     let cuboid = Shape::Cuboid(Cuboid {

@@ -9,6 +9,7 @@ use super::{Cloth, ClothCorePlugin, ClothParams, ClothStats, ClothSystems};
 use crate::collision::{
     Capsule, Cuboid, PenaltySphere, Plane, Shape, Sphere, project_shapes, project_spheres,
 };
+use crate::model::{ClothModel, ClothState};
 
 /// How a sphere acts on the cloth.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq)]
@@ -177,10 +178,25 @@ fn gather_spheres(
 fn project_cloths(
     time: Res<Time>,
     spheres: Res<ClothColliders>,
+    cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
+) {
+    if !spheres.projection.is_empty() {
+        project_running_cloths(&time, cloths, |model, state, thickness, dt| {
+            project_spheres(model, state, &spheres.projection, thickness, dt)
+        });
+    }
+}
+
+/// Runs `project` (model, state, the cloth's particle radius, `dt`; returns
+/// the contacts) on every running cloth, in parallel, and counts its
+/// contacts in the cloth's stats.
+fn project_running_cloths(
+    time: &Time,
     mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
+    project: impl Fn(&ClothModel, &mut ClothState, f32, f32) -> usize + Sync,
 ) {
     let dt = time.delta_secs();
-    if dt <= 0.0 || spheres.projection.is_empty() {
+    if dt <= 0.0 {
         return;
     }
     cloths
@@ -190,13 +206,7 @@ fn project_cloths(
                 return;
             }
             let cloth = &mut *cloth;
-            let contacts = project_spheres(
-                &cloth.model,
-                &mut cloth.state,
-                &spheres.projection,
-                params.particle_radius,
-                dt,
-            );
+            let contacts = project(&cloth.model, &mut cloth.state, params.particle_radius, dt);
             stats.contacts += contacts as u32;
         });
 }
@@ -442,26 +452,11 @@ fn gather_shapes(
 fn project_cloths_on_shapes(
     time: Res<Time>,
     colliders: Res<ClothColliders>,
-    mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
+    cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
-    let dt = time.delta_secs();
-    if dt <= 0.0 || colliders.shapes.is_empty() {
-        return;
-    }
-    cloths
-        .par_iter_mut()
-        .for_each(|(mut cloth, params, mut stats)| {
-            if !cloth.initialized || !stats.is_running() {
-                return;
-            }
-            let cloth = &mut *cloth;
-            let contacts = project_shapes(
-                &cloth.model,
-                &mut cloth.state,
-                &colliders.shapes,
-                params.particle_radius,
-                dt,
-            );
-            stats.contacts += contacts as u32;
+    if !colliders.shapes.is_empty() {
+        project_running_cloths(&time, cloths, |model, state, thickness, dt| {
+            project_shapes(model, state, &colliders.shapes, thickness, dt)
         });
+    }
 }

@@ -208,6 +208,10 @@ pub struct ProjectiveWorkspace {
     aa_f: Vec<f64>,
     aa_dg: Vec<Vec<f64>>,
     aa_df: Vec<Vec<f64>>,
+    /// Anderson's `ΔFᵀΔF` by slot, its copy to solve in, and `γ`.
+    aa_gram: Vec<f64>,
+    aa_system: Vec<f64>,
+    aa_gamma: Vec<f64>,
     /// Index in `values` of each free vertex's diagonal entry, and that
     /// entry without contacts.
     diag_pos: Vec<usize>,
@@ -499,9 +503,14 @@ impl ProjectiveSolver {
         let mut extrapolated = false;
         // ΔFᵀΔF by ring slot (slots 0..history hold the history), kept
         // row by row as slots are rewritten, and a copy to solve in.
-        let mut gram = vec![0.0f64; window * window];
-        let mut system = vec![0.0f64; window * window];
-        let mut rhs = vec![0.0f64; window];
+        ws.aa_gram.resize(window * window, 0.0);
+        ws.aa_system.resize(window * window, 0.0);
+        ws.aa_gamma.resize(window, 0.0);
+        let (mut gram, mut system, mut rhs) = (
+            std::mem::take(&mut ws.aa_gram),
+            std::mem::take(&mut ws.aa_system),
+            std::mem::take(&mut ws.aa_gamma),
+        );
         for k in 0..self.iterations {
             let mut energy = ws.local_with_energy(model, x, spheres)
                 + Self::inertia(model, x, ws, inv_h2, gravity);
@@ -595,6 +604,8 @@ impl ProjectiveSolver {
                 }
             }
         }
+        // Kept for the next step (an early error return just drops them).
+        (ws.aa_gram, ws.aa_system, ws.aa_gamma) = (gram, system, rhs);
         Ok(())
     }
 }
