@@ -95,6 +95,12 @@
 //!   [`CuboidCollider`] / [`ShapeCollisionPlugin`]: projected after the step
 //!   with Coulomb friction ([`collision::project_shapes`]); every method.
 //!
+//! ## Wind and air
+//! - [`Wind`] (a resource: mean velocity, deterministic gusts) /
+//!   [`WindPlugin`]: per-triangle drag and lift ([`aero`]), coefficients per
+//!   cloth in [`ClothAerodynamics`]; an explicit external force of the step,
+//!   with its damping part implicit, for every method.
+//!
 //! ## The assignment's golden first step
 //!
 //! The assignment prints `A` and `b` of the first step of its 2×2 cloth
@@ -184,6 +190,8 @@
 //! SyncIn:   for each cloth
 //!             if new: place rest shape by the entity's global transform
 //!             else:   move pinned vertices to transform · rest position
+//! Forces:   with a Wind resource, for each cloth: per-triangle drag and lift from the
+//!           velocity relative to the wind; v ← v + h·F/(m + h·c) (c: drag's damping)
 //! Step:     for each cloth, with its method (in parallel across cloths)
 //!             keep a copy of the state (last good)
 //!             implicit: v ← damping·v; x̃ = x + dt·v; x = x̃
@@ -262,6 +270,7 @@
 
 #![warn(missing_docs)]
 
+pub mod aero;
 pub mod collision;
 #[cfg(feature = "picking")]
 pub mod drag;
@@ -280,11 +289,11 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    CapsuleCollider, Cloth, ClothColliders, ClothCorePlugin, ClothDiverged, ClothFollowSystems,
-    ClothGuard, ClothMethod, ClothMethods, ClothNotConverged, ClothParams, ClothSimulation,
-    ClothStats, ClothStatus, ClothSystems, ClothWorkspace, CuboidCollider, DivergenceReason,
-    GuardAction, MethodPlugin, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
-    SphereCollisionPlugin, SphereResponse,
+    CapsuleCollider, Cloth, ClothAerodynamics, ClothColliders, ClothCorePlugin, ClothDiverged,
+    ClothFollowSystems, ClothGuard, ClothMethod, ClothMethods, ClothNotConverged, ClothParams,
+    ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, CuboidCollider,
+    DivergenceReason, GuardAction, MethodPlugin, PlaneCollider, ShapeCollisionPlugin,
+    SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -301,10 +310,11 @@ pub use solver::symplectic::SymplecticSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        CapsuleCollider, Cloth, ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard,
-        ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
-        CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
-        SphereCollider, SphereCollisionPlugin, SphereResponse,
+        CapsuleCollider, Cloth, ClothAerodynamics, ClothCorePlugin, ClothDiverged,
+        ClothFollowSystems, ClothGuard, ClothNotConverged, ClothParams, ClothSimulation,
+        ClothStats, ClothStatus, ClothSystems, CuboidCollider, DivergenceReason, GuardAction,
+        PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
+        Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
@@ -338,6 +348,7 @@ pub mod prelude {
 /// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 /// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
+/// | [`WindPlugin`] | Per-triangle air drag and lift in a gusty [`Wind`], while that resource exists. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
 /// by disabling some: `ClothPlugins::default().build().disable::<PbdPlugin>()`.
@@ -367,6 +378,7 @@ impl PluginGroup for ClothPlugins {
         methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
             .add(ShapeCollisionPlugin::new(self.schedule))
+            .add(WindPlugin::new(self.schedule))
     }
 }
 

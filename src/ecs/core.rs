@@ -54,6 +54,7 @@ impl Plugin for ClothCorePlugin {
                 (
                     ClothSystems::First,
                     ClothSystems::SyncIn,
+                    ClothSystems::Forces,
                     ClothSystems::Step,
                     ClothSystems::Collide,
                     ClothSystems::SyncOut,
@@ -65,6 +66,7 @@ impl Plugin for ClothCorePlugin {
                 self.schedule,
                 (
                     ClothSystems::SyncIn,
+                    ClothSystems::Forces,
                     ClothSystems::Step,
                     ClothSystems::Collide,
                     ClothSystems::SyncOut,

@@ -10,6 +10,7 @@ mod components;
 mod core;
 mod method;
 mod schedule;
+mod wind;
 
 use bevy::prelude::*;
 
@@ -22,6 +23,7 @@ pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, Gu
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
 pub use schedule::{ClothFollowSystems, ClothSystems};
+pub use wind::{ClothAerodynamics, Wind, WindPlugin};
 
 /// Sent when the divergence guard rejects a cloth's step (see
 /// [`ClothGuard`]): the step went non-finite, left the guard's bounds, or its

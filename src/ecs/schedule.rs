@@ -10,23 +10,28 @@ use bevy::prelude::*;
 ///    the cloth step (for example moving a collider).
 /// 2. [`SyncIn`](Self::SyncIn): new cloths are placed at their entity's
 ///    transform; pinned vertices move to where their entity puts them.
-/// 3. [`Step`](Self::Step): each method plugin advances the cloths that carry
+/// 3. [`Forces`](Self::Forces): external forces other than gravity change
+///    the cloths' velocities (wind and air, [`WindPlugin`](crate::WindPlugin)),
+///    as explicit forces of the coming step.
+/// 4. [`Step`](Self::Step): each method plugin advances the cloths that carry
 ///    its solver component under the divergence guard
 ///    ([`ClothGuard`](crate::ecs::ClothGuard)): the state before the step is
 ///    kept, and a step that fails is undone and retried with halved time
 ///    steps, or the cloth is stopped.
-/// 4. [`Collide`](Self::Collide): colliders act on the stepped cloths.
-/// 5. [`SyncOut`](Self::SyncOut): the guard checks every cloth again after
+/// 5. [`Collide`](Self::Collide): colliders act on the stepped cloths.
+/// 6. [`SyncOut`](Self::SyncOut): the guard checks every cloth again after
 ///    collision (restoring and pausing one that failed), sends
 ///    [`ClothDiverged`](crate::ecs::ClothDiverged) for every rejected step,
 ///    and [`ClothStats`](crate::ecs::ClothStats) gets max stretch and energy.
-/// 6. [`Last`](Self::Last): empty, for user systems that read the result.
+/// 7. [`Last`](Self::Last): empty, for user systems that read the result.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ClothSystems {
     /// Empty hook before the step.
     First,
     /// Place new cloths, move pinned vertices.
     SyncIn,
+    /// External forces (wind, air) act on velocities.
+    Forces,
     /// Advance each cloth with its method.
     Step,
     /// Resolve collisions.

@@ -9,3 +9,4 @@ mod drag;
 mod mistakes;
 mod plugin;
 mod scenes;
+mod wind;

@@ -82,8 +82,8 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
     // Core (3) + six methods + sphere and shape gathering and projection +
-    // counter.
-    assert_eq!(fixed_system_count(&mut full), 14);
+    // wind + counter.
+    assert_eq!(fixed_system_count(&mut full), 15);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
