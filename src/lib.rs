@@ -95,7 +95,14 @@
 //!   [`CuboidCollider`] / [`ShapeCollisionPlugin`]: projected after the step
 //!   with Coulomb friction ([`collision::project_shapes`]); every method.
 //!
-//! ## Wind and air
+//! ## Pins
+- Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
+  follow the cloth's own entity; [`ClothAttachments`] hands any vertices
+  ([`ClothModel::vertices_where`](model::ClothModel::vertices_where) picks
+  them by rest position) to other entities with an offset, attached,
+  detached and re-attached at run time.
+
+## Wind and air
 //! - [`Wind`] (a resource: mean velocity, deterministic gusts) /
 //!   [`WindPlugin`]: per-triangle drag and lift ([`aero`]), coefficients per
 //!   cloth in [`ClothAerodynamics`]; an explicit external force of the step,
@@ -190,6 +197,8 @@
 //! SyncIn:   for each cloth
 //!             if new: place rest shape by the entity's global transform
 //!             else:   move pinned vertices to transform · rest position
+//!           attachments: vertices held by other entities → target · offset · rest
+//!                        (the pinned set follows attach/detach; a gone target releases)
 //! Forces:   with a Wind resource, for each cloth: per-triangle drag and lift from the
 //!           velocity relative to the wind; v ← v + h·F/(m + h·c) (c: drag's damping)
 //! Step:     for each cloth, with its method (in parallel across cloths)
@@ -289,11 +298,11 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
-    CapsuleCollider, Cloth, ClothAerodynamics, ClothColliders, ClothCorePlugin, ClothDiverged,
-    ClothFollowSystems, ClothGuard, ClothMethod, ClothMethods, ClothNotConverged, ClothParams,
-    ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, CuboidCollider,
-    DivergenceReason, GuardAction, MethodPlugin, PlaneCollider, ShapeCollisionPlugin,
-    SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+    Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
+    ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard, ClothMethod, ClothMethods,
+    ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
+    ClothWorkspace, CuboidCollider, DivergenceReason, GuardAction, MethodPlugin, PlaneCollider,
+    ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -310,11 +319,11 @@ pub use solver::symplectic::SymplecticSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
-        CapsuleCollider, Cloth, ClothAerodynamics, ClothCorePlugin, ClothDiverged,
-        ClothFollowSystems, ClothGuard, ClothNotConverged, ClothParams, ClothSimulation,
-        ClothStats, ClothStatus, ClothSystems, CuboidCollider, DivergenceReason, GuardAction,
-        PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
-        Wind, WindPlugin,
+        Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
+        ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged, ClothParams,
+        ClothSimulation, ClothStats, ClothStatus, ClothSystems, CuboidCollider, DivergenceReason,
+        GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+        SphereResponse, Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,

@@ -63,6 +63,14 @@ pub struct Cloth {
     /// Set by a step that did not converge; sent as a message in `SyncOut`.
     #[reflect(ignore)]
     pub(crate) not_converged: Option<f32>,
+    /// The pins the cloth was built with, which follow its own entity.
+    #[reflect(ignore)]
+    pub(crate) own_pins: Vec<u32>,
+    /// The vertices held by other entities now
+    /// ([`ClothAttachments`](super::ClothAttachments)), sorted; pinned in the
+    /// model too.
+    #[reflect(ignore)]
+    pub(crate) attached: Vec<u32>,
 }
 
 /// Places a cloth's rest shape at its entity's global transform as soon as the
@@ -88,7 +96,11 @@ impl Cloth {
     /// A cloth of this model; it is placed at its entity's transform on the
     /// first fixed step.
     pub fn new(model: ClothModel) -> Self {
-        Self { model, ..default() }
+        Self {
+            own_pins: model.pins().to_vec(),
+            model,
+            ..default()
+        }
     }
 
     /// Builds the model and wraps it.
@@ -147,6 +159,8 @@ impl Cloth {
     pub(crate) fn place(&mut self, affine: &bevy::math::Affine3A) {
         self.state = ClothState::at_rest(&self.model, affine);
         self.last_good.copy_from(&self.state);
+        // Held vertices are taken again, from rest, at the next step.
+        self.attached.clear();
         self.initialized = true;
     }
 }

@@ -41,6 +41,7 @@ impl Default for ClothCorePlugin {
 impl Plugin for ClothCorePlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<Cloth>()
+            .register_type::<super::ClothAttachments>()
             .register_type::<ClothParams>()
             .register_type::<ClothStats>()
             .register_type::<ClothGuard>()
@@ -81,6 +82,10 @@ impl Plugin for ClothCorePlugin {
                 self.schedule,
                 (
                     place_and_pin.in_set(ClothSystems::SyncIn),
+                    super::attach::hold_attached
+                        .in_set(ClothSystems::SyncIn)
+                        .after(place_and_pin)
+                        .run_if(any_with_component::<super::ClothAttachments>),
                     guard_and_measure.in_set(ClothSystems::SyncOut),
                 )
                     .run_if(any_with_component::<Cloth>),
@@ -91,7 +96,12 @@ impl Plugin for ClothCorePlugin {
             )
             .add_systems(
                 PostUpdate,
-                follow_anchors
+                (
+                    follow_anchors,
+                    super::attach::follow_attached
+                        .run_if(any_with_component::<super::ClothAttachments>),
+                )
+                    .chain()
                     .in_set(ClothFollowSystems)
                     .run_if(any_with_component::<Cloth>),
             );
@@ -168,7 +178,11 @@ fn place_and_pin(
 /// `dt`.
 fn pin(cloth: &mut Cloth, affine: &bevy::math::Affine3A, dt: f32) {
     let rest = cloth.model.topology().rest_positions();
-    for &p in cloth.model.pins() {
+    for &p in &cloth.own_pins {
+        // A vertex another entity holds follows that entity instead.
+        if cloth.attached.binary_search(&p).is_ok() {
+            continue;
+        }
         let p = p as usize;
         let target = affine.transform_point3a(rest[p].into());
         let old = cloth.state.positions[p];
@@ -193,7 +207,7 @@ fn follow_anchors(
     mut cloths: Query<(Entity, &mut Cloth, &ClothStats), Moved>,
 ) {
     for (entity, mut cloth, stats) in &mut cloths {
-        if !cloth.initialized || !stats.is_running() || cloth.model.pins().is_empty() {
+        if !cloth.initialized || !stats.is_running() || cloth.own_pins.is_empty() {
             continue;
         }
         if let Ok(global) = helper.compute_global_transform(entity) {

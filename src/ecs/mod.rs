@@ -5,6 +5,7 @@
 //! [`solver`](crate::solver) and [`collision`](crate::collision), which know
 //! nothing of entities, schedules or time.
 
+mod attach;
 mod collision;
 mod components;
 mod core;
@@ -15,6 +16,7 @@ mod wind;
 use bevy::prelude::*;
 
 pub use crate::solver::guard::DivergenceReason;
+pub use attach::{Attachment, ClothAttachments};
 pub use collision::{
     CapsuleCollider, ClothColliders, CuboidCollider, PlaneCollider, ShapeCollisionPlugin,
     SphereCollider, SphereCollisionPlugin, SphereResponse,

@@ -301,18 +301,7 @@ impl ClothBuilder {
         {
             return Err(ClothBuildError::InvalidMass { vertex, mass });
         }
-        if let Some(&index) = self.pins.iter().find(|&&p| p as usize >= n) {
-            return Err(ClothBuildError::PinOutOfRange {
-                index,
-                vertex_count: n,
-            });
-        }
-        let mut seen = vec![false; n];
-        for &p in &self.pins {
-            if std::mem::replace(&mut seen[p as usize], true) {
-                return Err(ClothBuildError::DuplicatePin { index: p });
-            }
-        }
+        super::check_pins(&self.pins, n)?;
         let springs = match springs {
             Some(springs) => springs,
             None => {

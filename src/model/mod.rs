@@ -100,6 +100,49 @@ impl ClothModel {
     pub fn vertex_count(&self) -> usize {
         self.masses.len()
     }
+
+    /// Replaces the pinned vertices (a run-time attach or detach). Every
+    /// method notices the change at its next step (the factorising ones
+    /// refactorise). On error the pins are unchanged.
+    pub fn set_pins(&mut self, pins: Vec<u32>) -> Result<(), ClothBuildError> {
+        check_pins(&pins, self.vertex_count())?;
+        self.pinned.fill(false);
+        for &p in &pins {
+            self.pinned[p as usize] = true;
+        }
+        self.pins = pins;
+        Ok(())
+    }
+
+    /// The vertices whose rest position satisfies `select`, in index order:
+    /// pins by place (`|p| p.y > 0.99` for a top edge).
+    pub fn vertices_where(&self, select: impl Fn(Vec3) -> bool) -> Vec<u32> {
+        vertices_where(self.topology.rest_positions(), select)
+    }
+}
+
+/// The indices of `positions` that satisfy `select`.
+pub(crate) fn vertices_where(positions: &[Vec3], select: impl Fn(Vec3) -> bool) -> Vec<u32> {
+    (0..positions.len() as u32)
+        .filter(|&i| select(positions[i as usize]))
+        .collect()
+}
+
+/// Every pin in range and listed once.
+pub(crate) fn check_pins(pins: &[u32], vertex_count: usize) -> Result<(), ClothBuildError> {
+    if let Some(&index) = pins.iter().find(|&&p| p as usize >= vertex_count) {
+        return Err(ClothBuildError::PinOutOfRange {
+            index,
+            vertex_count,
+        });
+    }
+    let mut seen = vec![false; vertex_count];
+    for &p in pins {
+        if std::mem::replace(&mut seen[p as usize], true) {
+            return Err(ClothBuildError::DuplicatePin { index: p });
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

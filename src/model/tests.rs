@@ -307,3 +307,26 @@ fn triangle_meshes_get_shear_and_bending_from_neighbouring_triangles() {
         .unwrap();
     assert_eq!(only_bend.topology().spring_counts(), [stretch, 0, bend]);
 }
+
+#[test]
+fn pins_are_replaced_at_run_time_and_selected_by_place() {
+    let mut model = ClothBuilder::lab().build().unwrap();
+    // The lab grid's edge at x = 5 is vertices 0, 21, 42, …
+    let edge = model.vertices_where(|p| p.x > 4.99);
+    assert_eq!(edge, (0..21).map(|j| 21 * j).collect::<Vec<u32>>());
+    model.set_pins(edge.clone()).unwrap();
+    assert_eq!(model.pins(), edge.as_slice());
+    assert!(model.pinned()[21] && !model.pinned()[20]);
+    // Bad pins are refused and leave the pins as they were.
+    assert_eq!(
+        model.set_pins(vec![3, 3]),
+        Err(ClothBuildError::DuplicatePin { index: 3 })
+    );
+    assert!(matches!(
+        model.set_pins(vec![441]),
+        Err(ClothBuildError::PinOutOfRange { index: 441, .. })
+    ));
+    assert_eq!(model.pins(), edge.as_slice());
+    model.set_pins(Vec::new()).unwrap();
+    assert!(model.pinned().iter().all(|p| !p));
+}

@@ -2,6 +2,7 @@
 //! linked once).
 
 mod assignment;
+mod attach;
 mod colliders;
 mod common;
 #[cfg(feature = "picking")]

@@ -70,20 +70,20 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
         Transform::from_xyz(0.0, -4.0, 4.0),
     ));
     run_steps(&mut app, 50);
-    // Registered: the core and PBD only. Scheduled: place/pin, guard, the
-    // pause bookkeeping, the PBD step and the test's step counter; nothing
-    // else.
+    // Registered: the core and PBD only. Scheduled: place/pin, attachments
+    // (run only while some cloth has them), guard, the pause bookkeeping,
+    // the PBD step and the test's step counter; nothing else.
     let methods: Vec<_> = app.world().resource::<ClothMethods>().names().collect();
     assert_eq!(methods, ["pbd"]);
     assert!(app.is_plugin_added::<ClothCorePlugin>());
     assert!(!app.is_plugin_added::<ImplicitPlugin>());
     assert!(!app.is_plugin_added::<SphereCollisionPlugin>());
-    assert_eq!(fixed_system_count(&mut app), 5);
+    assert_eq!(fixed_system_count(&mut app), 6);
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
-    // Core (3) + six methods + sphere and shape gathering and projection +
+    // Core (4) + six methods + sphere and shape gathering and projection +
     // wind + counter.
-    assert_eq!(fixed_system_count(&mut full), 15);
+    assert_eq!(fixed_system_count(&mut full), 16);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
