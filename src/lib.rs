@@ -96,13 +96,13 @@
 //!   with Coulomb friction ([`collision::project_shapes`]); every method.
 //!
 //! ## Pins
-- Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
-  follow the cloth's own entity; [`ClothAttachments`] hands any vertices
-  ([`ClothModel::vertices_where`](model::ClothModel::vertices_where) picks
-  them by rest position) to other entities with an offset, attached,
-  detached and re-attached at run time.
-
-## Wind and air
+//! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
+//!   follow the cloth's own entity; [`ClothAttachments`] hands any vertices
+//!   ([`ClothModel::vertices_where`](model::ClothModel::vertices_where) picks
+//!   them by rest position) to other entities with an offset, attached,
+//!   detached and re-attached at run time.
+//!
+//! ## Wind and air
 //! - [`Wind`] (a resource: mean velocity, deterministic gusts) /
 //!   [`WindPlugin`]: per-triangle drag and lift ([`aero`]), coefficients per
 //!   cloth in [`ClothAerodynamics`]; an explicit external force of the step,

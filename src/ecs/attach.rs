@@ -213,12 +213,13 @@ pub(crate) fn hold_attached(
             // entity now (its pinning ran before this, while they were held).
             let own = helper.compute_global_transform(entity).map(|g| g.affine());
             for &v in &cloth.attached {
-                if attached.binary_search(&v).is_err() && cloth.own_pins.contains(&v) {
-                    if let Ok(own) = own {
-                        let rest = cloth.model.topology().rest_positions()[v as usize];
-                        cloth.state.positions[v as usize] = own.transform_point3a(rest.into());
-                        cloth.state.velocities[v as usize] = Vec3A::ZERO;
-                    }
+                if attached.binary_search(&v).is_err()
+                    && cloth.own_pins.contains(&v)
+                    && let Ok(own) = own
+                {
+                    let rest = cloth.model.topology().rest_positions()[v as usize];
+                    cloth.state.positions[v as usize] = own.transform_point3a(rest.into());
+                    cloth.state.velocities[v as usize] = Vec3A::ZERO;
                 }
             }
             cloth.attached = attached;
