@@ -64,6 +64,9 @@
 //!
 //! ## Cloths
 //! - [`ClothBuilder`](model::ClothBuilder): the lab's grid, any triangle list, a Bevy `Mesh`
+//!   (welded along its UV seams, written back unwelded); [`ClothFromMesh`]: a
+//!   cloth from a mesh asset still loading (glTF), built when it is ready;
+//!   [`model::mesh_vertices_where`]: pins painted in a vertex attribute
 //! - [`Cloth`], [`ClothParams`], [`ClothStats`]
 //! - Errors: [`ClothBuildError`](model::ClothBuildError), [`ParamError`](solver::ParamError)
 //!
@@ -299,10 +302,11 @@ use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
-    ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothGuard, ClothMethod, ClothMethods,
-    ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems,
-    ClothWorkspace, CuboidCollider, DivergenceReason, GuardAction, MethodPlugin, PlaneCollider,
-    ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+    ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethod,
+    ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus,
+    ClothSystems, ClothWorkspace, CuboidCollider, DivergenceReason, GuardAction, MethodPlugin,
+    PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
+    Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -320,16 +324,18 @@ pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
-        ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged, ClothParams,
-        ClothSimulation, ClothStats, ClothStatus, ClothSystems, CuboidCollider, DivergenceReason,
-        GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
-        SphereResponse, Wind, WindPlugin,
+        ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,
+        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, CuboidCollider,
+        DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
+        SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
         ProjectivePlugin, SymplecticPlugin,
     };
-    pub use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
+    pub use crate::model::{
+        ClothBuildError, ClothBuilder, ClothModel, ClothState, mesh_vertices_where,
+    };
     pub use crate::solver::StepError;
     pub use crate::solver::exact::ExactSolver;
     pub use crate::solver::guard::{GuardBounds, GuardPolicy};

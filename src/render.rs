@@ -125,21 +125,36 @@ fn write_cloth_meshes(
             continue;
         };
         let to_local = global.affine().inverse();
+        // A welded mesh: each mesh vertex shows its cloth vertex.
+        let map = cloth.model().welded_from();
+        let mesh_len = map.map_or(x.len(), <[u32]>::len);
+        let source = |k: usize| map.map_or(k, |m| m[k] as usize);
         if let Ok(Some(VertexAttributeValues::Float32x3(positions))) =
             mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_POSITION)
         {
-            if positions.len() != x.len() {
+            if positions.len() != mesh_len {
                 continue;
             }
-            for (out, p) in positions.iter_mut().zip(x) {
-                *out = to_local.transform_point3a(*p).to_array();
+            for (k, out) in positions.iter_mut().enumerate() {
+                *out = to_local.transform_point3a(x[source(k)]).to_array();
             }
         }
         if let Ok(Some(VertexAttributeValues::Float32x3(normals))) =
             mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_NORMAL)
-            && normals.len() == x.len()
+            && normals.len() == mesh_len
         {
-            fill_normals(cloth.model().topology().triangles(), x, &to_local, normals);
+            let triangles = cloth.model().topology().triangles();
+            match map {
+                None => fill_normals(triangles, x, &to_local, normals),
+                Some(map) => {
+                    // Normals of the welded cloth, so smooth across seams.
+                    let mut welded = vec![[0.0; 3]; x.len()];
+                    fill_normals(triangles, x, &to_local, &mut welded);
+                    for (out, &m) in normals.iter_mut().zip(map) {
+                        *out = welded[m as usize];
+                    }
+                }
+            }
         }
     }
 }

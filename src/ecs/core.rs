@@ -90,6 +90,11 @@ impl Plugin for ClothCorePlugin {
                 )
                     .run_if(any_with_component::<Cloth>),
             )
+            .add_systems(
+                PreUpdate,
+                super::mesh_source::build_cloths_from_meshes
+                    .run_if(any_with_component::<super::ClothFromMesh>),
+            )
             .configure_sets(
                 PostUpdate,
                 ClothFollowSystems.after(TransformSystems::Propagate),

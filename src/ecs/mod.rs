@@ -9,6 +9,7 @@ mod attach;
 mod collision;
 mod components;
 mod core;
+mod mesh_source;
 mod method;
 mod schedule;
 mod wind;
@@ -23,6 +24,7 @@ pub use collision::{
 };
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
+pub use mesh_source::ClothFromMesh;
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
 pub use schedule::{ClothFollowSystems, ClothSystems};
 pub use wind::{ClothAerodynamics, Wind, WindPlugin};

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use bevy::math::Vec3;
-use bevy::mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues};
+use bevy::mesh::{Indices, Mesh, MeshVertexAttribute, PrimitiveTopology, VertexAttributeValues};
 
 use super::topology::{cross_edge_springs, triangle_edges, validate_triangles};
 use super::{ClothBuildError, ClothModel, ClothTopology, MeshReadError, SpringKind};
@@ -29,6 +29,7 @@ enum Source {
     Triangles {
         positions: Vec<Vec3>,
         indices: Vec<u32>,
+        weld: bool,
     },
     SpringGrid {
         rows: usize,
@@ -104,7 +105,11 @@ impl ClothBuilder {
     /// (counter-clockwise seen from the front). Mass 1 per vertex.
     pub fn from_triangles(positions: Vec<Vec3>, indices: Vec<u32>) -> Self {
         Self {
-            source: Source::Triangles { positions, indices },
+            source: Source::Triangles {
+                positions,
+                indices,
+                weld: false,
+            },
             mass: Mass::PerVertex(1.0),
             pins: Vec::new(),
             shear: false,
@@ -165,8 +170,14 @@ impl ClothBuilder {
     }
 
     /// A Bevy triangle-list [`Mesh`] with `Float32x3` positions and an index
-    /// buffer. Vertices are shared by index only: weld duplicated seam vertices
-    /// first, or the cloth tears there.
+    /// buffer, **welded**: vertices at the same position (within a millionth
+    /// of the mesh's size), which a UV-mapped or flat-shaded mesh splits
+    /// along its seams, become one simulated vertex, so the cloth does not
+    /// tear there. [`ClothModel::welded_from`] maps the mesh's vertices to
+    /// the simulated ones, and the mesh write-back
+    /// (`render::ClothRenderPlugin`) writes them back unwelded, with normals
+    /// smooth across the seams. Pins
+    /// ([`with_pins`](Self::with_pins)) are mesh vertex indices.
     ///
     /// Fails with [`ClothBuildError::Mesh`], so reading and building share one
     /// error type: `ClothBuilder::from_mesh(&mesh)?.with_pins(..).build()?`.
@@ -191,7 +202,17 @@ impl ClothBuilder {
             Ok(None) => return Err(MeshReadError::MissingIndices),
             Err(_) => return Err(MeshReadError::Extracted),
         };
-        Ok(Self::from_triangles(positions, indices))
+        Ok(Self::from_triangles(positions, indices).with_welding(true))
+    }
+
+    /// Whether vertices at the same position are merged into one (see
+    /// [`from_mesh`](Self::from_mesh), where it is on; off for
+    /// [`from_triangles`](Self::from_triangles)). No effect on grids.
+    pub fn with_welding(mut self, on: bool) -> Self {
+        if let Source::Triangles { weld, .. } = &mut self.source {
+            *weld = on;
+        }
+        self
     }
 
     /// Mass of every vertex.
@@ -238,8 +259,17 @@ impl ClothBuilder {
     }
 
     /// Validates the description and builds the model.
-    pub fn build(self) -> Result<ClothModel, ClothBuildError> {
-        let (positions, triangles, springs) = match self.source {
+    pub fn build(mut self) -> Result<ClothModel, ClothBuildError> {
+        let mut weld_map = None;
+        let source = std::mem::replace(
+            &mut self.source,
+            Source::Grid {
+                rows: 0,
+                cols: 0,
+                corners: [Vec3::ZERO; 3],
+            },
+        );
+        let (positions, triangles, springs) = match source {
             Source::Grid {
                 rows,
                 cols,
@@ -251,15 +281,43 @@ impl ClothBuilder {
                 let (positions, triangles) = grid_mesh(rows, cols, o, ai - o, aj - o);
                 (positions, triangles, None)
             }
-            Source::Triangles { positions, indices } => {
+            Source::Triangles {
+                positions,
+                indices,
+                weld,
+            } => {
                 if indices.len() % 3 != 0 {
                     return Err(ClothBuildError::IndexCountNotMultipleOf3(indices.len()));
                 }
-                let tris = indices
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect();
-                (positions, tris, None)
+                if weld {
+                    if let Some(&index) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+                        return Err(ClothBuildError::IndexOutOfRange {
+                            index,
+                            vertex_count: positions.len(),
+                        });
+                    }
+                    if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+                        return Err(ClothBuildError::NonFinitePosition { vertex: v });
+                    }
+                    let welded = Weld::new(&positions);
+                    let tris: Vec<[u32; 3]> = indices
+                        .chunks_exact(3)
+                        .map(|c| [c[0], c[1], c[2]].map(|i| welded.map[i as usize]))
+                        // A triangle with two corners merged has no area.
+                        .filter(|[a, b, c]| a != b && b != c && a != c)
+                        .collect();
+                    if welded.positions.len() < positions.len() {
+                        self.pins = welded.pins(&self.pins, positions.len())?;
+                        weld_map = Some(welded.map);
+                    }
+                    (welded.positions, tris, None)
+                } else {
+                    let tris = indices
+                        .chunks_exact(3)
+                        .map(|c| [c[0], c[1], c[2]])
+                        .collect();
+                    (positions, tris, None)
+                }
             }
             Source::SpringGrid {
                 rows,
@@ -320,11 +378,9 @@ impl ClothBuilder {
             }
         };
         let topology = ClothTopology::new(positions, triangles, &springs)?;
-        Ok(ClothModel::from_parts(
-            Arc::new(topology),
-            masses,
-            self.pins,
-        ))
+        let mut model = ClothModel::from_parts(Arc::new(topology), masses, self.pins);
+        model.welded_from = weld_map.map(Arc::new);
+        Ok(model)
     }
 }
 
@@ -417,4 +473,86 @@ fn grid_mesh(
         }
     }
     (positions, triangles)
+}
+
+/// The vertices of `mesh` whose `attribute` satisfies `select` (given the
+/// value's components: one for `Float32`, four for a `Float32x4` colour),
+/// in index order: pins painted in a modelling tool, e.g. every vertex whose
+/// colour is red, `mesh_vertices_where(&mesh, Mesh::ATTRIBUTE_COLOR, |c| c[0] > 0.5)`.
+/// The indices are the mesh's, as [`ClothBuilder::with_pins`] takes them
+/// for [`ClothBuilder::from_mesh`].
+pub fn mesh_vertices_where(
+    mesh: &Mesh,
+    attribute: MeshVertexAttribute,
+    select: impl Fn(&[f32]) -> bool,
+) -> Result<Vec<u32>, MeshReadError> {
+    let values = match mesh.try_attribute_option(attribute.id) {
+        Ok(Some(values)) => values,
+        Ok(None) => return Err(MeshReadError::MissingAttribute(attribute.name)),
+        Err(_) => return Err(MeshReadError::Extracted),
+    };
+    fn pick<const N: usize>(v: &[[f32; N]], select: impl Fn(&[f32]) -> bool) -> Vec<u32> {
+        (0..v.len() as u32)
+            .filter(|&i| select(&v[i as usize]))
+            .collect()
+    }
+    Ok(match values {
+        VertexAttributeValues::Float32(v) => (0..v.len() as u32)
+            .filter(|&i| select(&[v[i as usize]]))
+            .collect(),
+        VertexAttributeValues::Float32x2(v) => pick(v, select),
+        VertexAttributeValues::Float32x3(v) => pick(v, select),
+        VertexAttributeValues::Float32x4(v) => pick(v, select),
+        _ => return Err(MeshReadError::AttributeFormat(attribute.name)),
+    })
+}
+
+/// Vertices at the same place merged: each source vertex's new index, and
+/// the merged positions (the first of each place's).
+struct Weld {
+    map: Vec<u32>,
+    positions: Vec<Vec3>,
+}
+
+impl Weld {
+    /// Merges positions that round to the same point on a grid of a
+    /// millionth of the bounding box's diagonal.
+    fn new(positions: &[Vec3]) -> Self {
+        let (lo, hi) = positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        let size = if lo.x <= hi.x {
+            (hi - lo).length()
+        } else {
+            0.0
+        };
+        let cell = if size > 0.0 { size * 1e-6 } else { 1.0 };
+        let mut first: std::collections::HashMap<[i64; 3], u32> =
+            std::collections::HashMap::with_capacity(positions.len());
+        let mut map = Vec::with_capacity(positions.len());
+        let mut merged = Vec::with_capacity(positions.len());
+        for &p in positions {
+            let key = ((p - lo) / cell).round().to_array().map(|c| c as i64);
+            let index = *first.entry(key).or_insert_with(|| {
+                merged.push(p);
+                (merged.len() - 1) as u32
+            });
+            map.push(index);
+        }
+        Self {
+            map,
+            positions: merged,
+        }
+    }
+
+    /// Pins given as source indices, as merged indices (each once).
+    fn pins(&self, pins: &[u32], source_count: usize) -> Result<Vec<u32>, ClothBuildError> {
+        super::check_pins(pins, source_count)?;
+        let mut merged: Vec<u32> = pins.iter().map(|&p| self.map[p as usize]).collect();
+        merged.sort_unstable();
+        merged.dedup();
+        Ok(merged)
+    }
 }

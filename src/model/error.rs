@@ -106,4 +106,10 @@ pub enum MeshReadError {
     /// The mesh data has already been moved to the render world.
     #[error("the mesh data is no longer available in the main world")]
     Extracted,
+    /// The mesh has no such vertex attribute.
+    #[error("the mesh has no {0} attribute")]
+    MissingAttribute(&'static str),
+    /// The attribute is not 1 to 4 `f32`s per vertex.
+    #[error("the mesh's {0} attribute is not Float32, Float32x2, Float32x3 or Float32x4")]
+    AttributeFormat(&'static str),
 }

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use bevy::math::Vec3;
 
-pub use builder::{ClothBuilder, Mass};
+pub use builder::{ClothBuilder, Mass, mesh_vertices_where};
 pub use error::{ClothBuildError, MeshReadError};
 pub use state::ClothState;
 pub use topology::{Adjacency, ClothTopology, Incidence, Spring, SpringKind};
@@ -26,6 +26,8 @@ pub struct ClothModel {
     pinned: Vec<bool>,
     pins: Vec<u32>,
     size: f32,
+    /// For each vertex of the source mesh, the vertex it was welded into.
+    pub(crate) welded_from: Option<Arc<Vec<u32>>>,
 }
 
 impl ClothModel {
@@ -54,7 +56,17 @@ impl ClothModel {
             pinned,
             pins,
             size,
+            welded_from: None,
         }
+    }
+
+    /// For a cloth built from a mesh whose seams were welded
+    /// ([`ClothBuilder::from_mesh`]): for each vertex of that mesh, the
+    /// cloth vertex it became. `None` when no vertex was merged (mesh and
+    /// cloth vertices are the same).
+    #[inline]
+    pub fn welded_from(&self) -> Option<&[u32]> {
+        self.welded_from.as_deref().map(Vec::as_slice)
     }
 
     /// The diagonal of the rest shape's bounding box: the cloth's size, the

@@ -330,3 +330,111 @@ fn pins_are_replaced_at_run_time_and_selected_by_place() {
     model.set_pins(Vec::new()).unwrap();
     assert!(model.pinned().iter().all(|p| !p));
 }
+
+/// A 5×5 grid mesh over [0, 4]² in the x–z plane whose column x = 2 is
+/// split in two (a UV seam: the right half's triangles use copies 25–29 of
+/// vertices 2, 7, 12, 17, 22), with a colour attribute red on row z = 0.
+fn seamed_mesh() -> Mesh {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{Indices, PrimitiveTopology};
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            positions.push([i as f32, 0.0, j as f32]);
+        }
+    }
+    for j in 0..5 {
+        positions.push([2.0, 0.0, j as f32]);
+    }
+    let colors: Vec<[f32; 4]> = positions
+        .iter()
+        .map(|p| {
+            if p[2] == 0.0 {
+                [1.0, 0.0, 0.0, 1.0]
+            } else {
+                [0.0, 0.0, 1.0, 1.0]
+            }
+        })
+        .collect();
+    let at = |i: u32, j: u32| if i == 2 { 25 + j } else { j * 5 + i };
+    let left = |i: u32, j: u32| j * 5 + i;
+    let mut indices = Vec::new();
+    for j in 0..4 {
+        for i in 0..4 {
+            let v = if i < 2 { left } else { at };
+            indices.extend([v(i, j), v(i, j + 1), v(i + 1, j + 1)]);
+            indices.extend([v(i, j), v(i + 1, j + 1), v(i + 1, j)]);
+        }
+    }
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+    .with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, colors)
+    .with_inserted_indices(Indices::U32(indices))
+}
+
+#[test]
+fn a_mesh_split_along_a_uv_seam_is_welded_into_one_cloth() {
+    let mesh = seamed_mesh();
+    let model = ClothBuilder::from_mesh(&mesh)
+        .unwrap()
+        .with_pins([2, 25, 0])
+        .build()
+        .unwrap();
+    assert_eq!(model.vertex_count(), 25);
+    assert_eq!(model.topology().triangles().len(), 32);
+    let map = model.welded_from().unwrap();
+    assert_eq!(map.len(), 30);
+    for j in 0..5 {
+        assert_eq!(map[25 + j], map[5 * j + 2], "seam copy {j} welded");
+    }
+    // Pins are mesh indices: 2 and its copy 25 are one cloth vertex.
+    assert_eq!(model.pins(), &[0, 2]);
+    // Every vertex is joined to the rest: each column-2 vertex has springs
+    // to both sides.
+    let topo = model.topology();
+    for j in 0..5u32 {
+        let v = map[(5 * j + 2) as usize];
+        let mut sides = topo.springs().iter().filter_map(|s| {
+            let other = if s.a == v {
+                s.b
+            } else if s.b == v {
+                s.a
+            } else {
+                return None;
+            };
+            Some(topo.rest_positions()[other as usize].x)
+        });
+        assert!(
+            sides.clone().any(|x| x < 2.0) && sides.any(|x| x > 2.0),
+            "row {j}"
+        );
+    }
+    // Without welding, the copies stay apart.
+    let split = ClothBuilder::from_mesh(&mesh)
+        .unwrap()
+        .with_welding(false)
+        .build()
+        .unwrap();
+    assert_eq!(split.vertex_count(), 30);
+    assert!(split.welded_from().is_none());
+}
+
+#[test]
+fn pins_are_picked_by_a_painted_attribute() {
+    let mesh = seamed_mesh();
+    let red = mesh_vertices_where(&mesh, Mesh::ATTRIBUTE_COLOR, |c| c[0] > 0.5).unwrap();
+    assert_eq!(red, vec![0, 1, 2, 3, 4, 25]);
+    let model = ClothBuilder::from_mesh(&mesh)
+        .unwrap()
+        .with_pins(red)
+        .build()
+        .unwrap();
+    assert_eq!(model.pins(), &[0, 1, 2, 3, 4]);
+    assert_eq!(
+        mesh_vertices_where(&mesh, Mesh::ATTRIBUTE_UV_0, |_| true),
+        Err(MeshReadError::MissingAttribute("Vertex_Uv"))
+    );
+}

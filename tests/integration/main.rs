@@ -7,6 +7,7 @@ mod colliders;
 mod common;
 #[cfg(feature = "picking")]
 mod drag;
+mod meshes;
 mod mistakes;
 mod plugin;
 mod scenes;
