@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""Fails unless a PNG screenshot of the lab shows the cloth.
+"""Fails unless a PNG screenshot shows the cloth.
 
-Standard library only: decodes 8-bit RGB/RGBA PNGs, then checks that the
-image is not blank (many distinct colours) and that enough pixels have the
-cloth's red checker colour.
+Usage: check_png.py FILE.png [red|blue]. Standard library only: decodes
+8-bit RGB/RGBA PNGs, then checks that the image is not blank (many distinct
+colours) and that enough pixels have the cloth's checker colour: red for
+the lab (the default), blue for the flag (whose capsule is red).
 """
 import struct
 import sys
@@ -55,16 +56,25 @@ def decode(path):
 
 def main():
     path = sys.argv[1]
+    colour = sys.argv[2] if len(sys.argv) > 2 else "red"
+    if colour == "red":
+        def hue(r, g, b):
+            return r > g + 50 and r > b + 50
+    elif colour == "blue":
+        def hue(r, g, b):
+            return b > r + 50 and b > g + 30
+    else:
+        sys.exit(f"unknown colour {colour}: red or blue")
     width, height, channels, rows = decode(path)
-    colours, red = set(), 0
+    colours, matching = set(), 0
     for line in rows:
         for x in range(0, width * channels, channels):
             r, g, b = line[x], line[x + 1], line[x + 2]
             colours.add((r, g, b))
-            if r > g + 50 and r > b + 50:
-                red += 1
-    share = red / (width * height)
-    print(f"{path}: {width}x{height}, {len(colours)} colours, cloth-red pixels {share:.1%}")
+            if hue(r, g, b):
+                matching += 1
+    share = matching / (width * height)
+    print(f"{path}: {width}x{height}, {len(colours)} colours, cloth-{colour} pixels {share:.1%}")
     if len(colours) < 100:
         sys.exit("the screenshot is blank or nearly one colour")
     if share < 0.005:

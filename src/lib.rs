@@ -28,6 +28,7 @@
 //! | `render` | `render`: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame. Needs Bevy's `bevy_mesh` and `bevy_camera` only (no renderer or window: the game brings its own). | Yes |
 //! | `picking` | `drag`: `DragPlugin` drags entities with the mouse (Bevy's picking). | No |
 //! | `egui` | `ui`: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | No |
+//! | `avian` | `avian`: `AvianCollisionPlugin` (in `ClothPlugins`): cloths collide with every avian3d 0.7 `Collider` by its closest-point query, with its `Friction`; one-way (the cloth does not push rigid bodies). | No |
 //!
 //! With default features a game builds the simulation and the mesh
 //! write-back only. With `default-features = false` the crate builds only the
@@ -283,6 +284,8 @@
 #![warn(missing_docs)]
 
 pub mod aero;
+#[cfg(feature = "avian")]
+pub mod avian;
 pub mod collision;
 #[cfg(feature = "picking")]
 pub mod drag;
@@ -364,6 +367,7 @@ pub mod prelude {
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 /// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
 /// | [`WindPlugin`] | Per-triangle air drag and lift in a gusty [`Wind`], while that resource exists. |
+/// | `avian::AvianCollisionPlugin` | (feature `avian`) Resolves cloths against the game's avian3d `Collider`s, one-way. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
 /// by disabling some: `ClothPlugins::default().build().disable::<PbdPlugin>()`.
@@ -390,10 +394,13 @@ impl Default for ClothPlugins {
 impl PluginGroup for ClothPlugins {
     fn build(self) -> PluginGroupBuilder {
         let group = PluginGroupBuilder::start::<Self>().add(ClothCorePlugin::new(self.schedule));
-        methods::add_method_plugins(group, self.schedule)
+        let group = methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
             .add(ShapeCollisionPlugin::new(self.schedule))
-            .add(WindPlugin::new(self.schedule))
+            .add(WindPlugin::new(self.schedule));
+        #[cfg(feature = "avian")]
+        let group = group.add(avian::AvianCollisionPlugin::new(self.schedule));
+        group
     }
 }
 

@@ -629,7 +629,14 @@ fn stats_ui(
         } else {
             ui.colored_label(
                 egui::Color32::YELLOW,
-                format!("{text}: not converged (raise iterations, or use pd)"),
+                format!(
+                    "{text}: not converged (raise iterations, or use {})",
+                    match stats.method {
+                        "pd" => "pd-anderson",
+                        "pd-anderson" => "exact",
+                        _ => "pd",
+                    }
+                ),
             );
         }
     }

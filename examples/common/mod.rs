@@ -88,15 +88,9 @@ pub fn run(mut app: App) -> ExitCode {
     }
 }
 
-/// A sun with shadows, soft ambient light, and a ground plane at `ground_y`
-/// that cloths collide with (friction 0.5).
-pub fn light_and_ground(
-    commands: &mut Commands,
-    meshes: &mut Assets<Mesh>,
-    materials: &mut Assets<StandardMaterial>,
-    ground_y: f32,
-    size: f32,
-) {
+/// A sun with shadows over a scene of about `size` units, and soft ambient
+/// light.
+pub fn light(commands: &mut Commands, size: f32) {
     commands.spawn((
         DirectionalLight {
             illuminance: 8000.0,
@@ -109,6 +103,20 @@ pub fn light_and_ground(
         brightness: 600.0,
         ..default()
     });
+}
+
+/// A sun with shadows, soft ambient light, and a ground plane at `ground_y`
+/// that cloths collide with (friction 0.5).
+// The flag example has an avian ground instead.
+#[allow(dead_code)]
+pub fn light_and_ground(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<StandardMaterial>,
+    ground_y: f32,
+    size: f32,
+) {
+    light(commands, size);
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(size, size))),
         MeshMaterial3d(materials.add(StandardMaterial {

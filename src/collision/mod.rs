@@ -289,6 +289,25 @@ pub fn project_shapes(
     thickness: f32,
     dt: f32,
 ) -> usize {
+    project_contacts(model, state, shapes, dt, |shape, x| {
+        shape
+            .contact(x, thickness)
+            .map(|(normal, depth)| (normal, depth, shape.friction()))
+    })
+}
+
+/// [`project_shapes`] for any solids: `contact(solid, x)` gives, for a point
+/// `x` within contact distance, the unit direction to push it along, how far
+/// (`depth > 0`), and the friction coefficient. Used for the game's own
+/// colliders (feature `avian`: any avian collider by its closest-point
+/// query).
+pub fn project_contacts<S>(
+    model: &ClothModel,
+    state: &mut ClothState,
+    solids: &[S],
+    dt: f32,
+    contact: impl Fn(&S, Vec3A) -> Option<(Vec3A, f32, f32)>,
+) -> usize {
     let pinned = model.pinned();
     let inv_dt = 1.0 / dt;
     let mut count = 0;
@@ -300,8 +319,8 @@ pub fn project_shapes(
         if pinned[i] {
             continue;
         }
-        for shape in shapes {
-            let Some((normal, depth)) = shape.contact(*x, thickness) else {
+        for solid in solids {
+            let Some((normal, depth, friction)) = contact(solid, *x) else {
                 continue;
             };
             *x += depth * normal;
@@ -309,7 +328,6 @@ pub fn project_shapes(
             count += 1;
             let tangential = *v - v.dot(normal) * normal;
             let speed = tangential.length();
-            let friction = shape.friction();
             if speed > 0.0 && friction > 0.0 {
                 let taken = (friction * depth * inv_dt).min(speed);
                 let dv = tangential * (-taken / speed);

@@ -190,7 +190,7 @@ fn project_cloths(
 /// Runs `project` (model, state, the cloth's particle radius, `dt`; returns
 /// the contacts) on every running cloth, in parallel, and counts its
 /// contacts in the cloth's stats.
-fn project_running_cloths(
+pub(crate) fn project_running_cloths(
     time: &Time,
     mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
     project: impl Fn(&ClothModel, &mut ClothState, f32, f32) -> usize + Sync,
@@ -449,7 +449,7 @@ fn gather_shapes(
 }
 
 /// Projects every running cloth out of every shape.
-fn project_cloths_on_shapes(
+pub(crate) fn project_cloths_on_shapes(
     time: Res<Time>,
     colliders: Res<ClothColliders>,
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,

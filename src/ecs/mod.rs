@@ -22,6 +22,10 @@ pub use collision::{
     CapsuleCollider, ClothColliders, CuboidCollider, PlaneCollider, ShapeCollisionPlugin,
     SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
+#[cfg(feature = "avian")]
+pub(crate) use collision::{
+    project_cloths_on_shapes as project_after_shapes, project_running_cloths,
+};
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use mesh_source::ClothFromMesh;

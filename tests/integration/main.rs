@@ -3,6 +3,8 @@
 
 mod assignment;
 mod attach;
+#[cfg(feature = "avian")]
+mod avian;
 mod colliders;
 mod common;
 #[cfg(feature = "picking")]
