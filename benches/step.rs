@@ -86,6 +86,7 @@ fn steps(c: &mut Criterion) {
         let sphere = [Sphere {
             center: bevy::math::Vec3A::new(0.0, -4.0, 4.0),
             radius: 2.7,
+            friction: 0.0,
         }];
         let mut state = start.clone();
         group.bench_function(BenchmarkId::new("sphere_projection", n), |b| {

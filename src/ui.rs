@@ -715,6 +715,9 @@ fn colliders_ui(ui: &mut egui::Ui, colliders: &mut Query<(Entity, &mut SphereCol
                     .text("penalty stiffness")
                     .logarithmic(true),
             );
+        } else {
+            // Friction acts with the projection only.
+            ui.add(egui::Slider::new(&mut c.friction, 0.0..=1.5).text("friction μ"));
         }
         if *c != before {
             collider.set_changed();

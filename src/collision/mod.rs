@@ -10,8 +10,9 @@
 //!
 //! `vᵢ ← vᵢ + (c + r(xᵢ − c)/‖xᵢ − c‖ − xᵢ)/dt`, `xᵢ ← c + r(xᵢ − c)/‖xᵢ − c‖`.
 //!
-//! No friction on spheres. A vertex exactly at the centre is pushed along
-//! `+y`. Planes, capsules and boxes project the same way and add Coulomb
+//! Spheres have no friction by default (the lab's); give one a coefficient
+//! and Coulomb friction follows, as for the other shapes. A vertex exactly
+//! at the centre is pushed along `+y`. Planes, capsules and boxes project the same way and add Coulomb
 //! friction ([`project_shapes`]).
 
 use bevy::math::{DVec3, Vec3A};
@@ -120,11 +121,15 @@ pub struct Sphere {
     pub center: Vec3A,
     /// Radius (the lab: 2.7).
     pub radius: f32,
+    /// Coulomb friction coefficient `μ ≥ 0` (the lab's sphere: 0).
+    pub friction: f32,
 }
 
 /// Projects every free vertex out of every sphere grown by `thickness` (the
 /// cloth's particle radius; the lab uses 0) per the lab's equation 4, and
-/// returns how many projections were made. `dt` must be positive.
+/// returns how many projections were made. With a sphere's `friction > 0`,
+/// Coulomb friction follows each projection as in [`project_shapes`]
+/// (with 0, the lab's, exactly equation 4). `dt` must be positive.
 pub fn project_spheres(
     model: &ClothModel,
     state: &mut ClothState,
@@ -154,6 +159,9 @@ pub fn project_spheres(
                 *v += (target - *x) * inv_dt;
                 *x = target;
                 count += 1;
+                if s.friction > 0.0 {
+                    friction(x, v, dir, (radius - dist) * inv_dt, s.friction, dt);
+                }
             }
         }
     }
@@ -326,17 +334,25 @@ pub fn project_contacts<S>(
             *x += depth * normal;
             *v += depth * inv_dt * normal;
             count += 1;
-            let tangential = *v - v.dot(normal) * normal;
-            let speed = tangential.length();
-            if speed > 0.0 && friction > 0.0 {
-                let taken = (friction * depth * inv_dt).min(speed);
-                let dv = tangential * (-taken / speed);
-                *v += dv;
-                *x += dv * dt;
-            }
+            self::friction(x, v, normal, depth * inv_dt, friction, dt);
         }
     }
     count
+}
+
+/// Coulomb friction after a projection along `normal` with normal impulse
+/// (per unit mass) `impulse`: takes up to `μ·impulse` from the tangential
+/// velocity, and the matching displacement from the position.
+#[inline]
+fn friction(x: &mut Vec3A, v: &mut Vec3A, normal: Vec3A, impulse: f32, mu: f32, dt: f32) {
+    let tangential = *v - v.dot(normal) * normal;
+    let speed = tangential.length();
+    if speed > 0.0 && mu > 0.0 {
+        let taken = (mu * impulse).min(speed);
+        let dv = tangential * (-taken / speed);
+        *v += dv;
+        *x += dv * dt;
+    }
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ fn vertices_inside_are_projected_to_the_surface_with_matching_velocity() {
     let sphere = Sphere {
         center: Vec3A::new(0.0, -1.0, 0.0),
         radius: 2.7,
+        friction: 0.0,
     };
     let dt = 0.0333;
     let count = project_spheres(&model, &mut state, &[sphere], 0.0, dt);
@@ -38,10 +39,12 @@ fn pinned_vertices_and_the_centre_case() {
         Sphere {
             center: state.positions[0],
             radius: 0.1,
+            friction: 0.0,
         },
         Sphere {
             center: state.positions[220],
             radius: 0.1,
+            friction: 0.0,
         },
     ];
     let pin = state.positions[0];
@@ -150,4 +153,33 @@ fn capsules_and_boxes_push_points_out_to_their_surface() {
         "pushed out to {out}"
     );
     assert!(cuboid.contact(Vec3A::new(0.0, 3.0, 0.0), 0.0).is_none());
+}
+
+#[test]
+fn a_sphere_with_friction_holds_what_a_frictionless_one_lets_slide() {
+    // A vertex sinking into the side of a sphere while sliding along it:
+    // with μ = 0 it keeps its tangential speed (the lab's equation 4), with
+    // enough friction it sticks.
+    let model = ClothBuilder::lab().build().unwrap();
+    let dt = 0.01;
+    let slide = |friction: f32| {
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let i = 220;
+        let center = state.positions[i] - Vec3A::new(0.0, 0.99, 0.0);
+        state.velocities[i] = Vec3A::new(0.5, -1.0, 0.0);
+        let sphere = Sphere {
+            center,
+            radius: 1.0,
+            friction,
+        };
+        assert_eq!(project_spheres(&model, &mut state, &[sphere], 0.0, dt), 1);
+        let n = (state.positions[i] - center).normalize();
+        let v = state.velocities[i];
+        (v - v.dot(n) * n).length()
+    };
+    let free = slide(0.0);
+    assert!((free - 0.5).abs() < 0.01, "{free}");
+    assert!(slide(10.0) < 1e-5, "{}", slide(10.0));
+    let some = slide(0.5);
+    assert!(some > 0.0 && some < free, "{some}");
 }

@@ -59,6 +59,9 @@ pub struct SphereCollider {
     pub radius: f32,
     /// How the sphere acts on the cloth.
     pub response: SphereResponse,
+    /// Coulomb friction coefficient `μ ≥ 0` of the projection (the lab's
+    /// sphere: 0, frictionless); see [`project_shapes`].
+    pub friction: f32,
 }
 
 impl SphereCollider {
@@ -67,7 +70,15 @@ impl SphereCollider {
         Self {
             radius,
             response: SphereResponse::Projection,
+            friction: 0.0,
         }
+    }
+
+    /// The same sphere with Coulomb friction `μ` (projection response).
+    #[must_use]
+    pub const fn with_friction(mut self, friction: f32) -> Self {
+        self.friction = friction;
+        self
     }
 
     /// A penalty sphere of this radius and stiffness.
@@ -75,6 +86,7 @@ impl SphereCollider {
         Self {
             radius,
             response: SphereResponse::Penalty { stiffness },
+            friction: 0.0,
         }
     }
 }
@@ -147,10 +159,18 @@ fn gather_spheres(
         };
         let center = global.translation_vec3a();
         let radius = collider.radius;
-        let valid_radius = radius.is_finite() && radius >= 0.0 && center.is_finite();
+        let valid_radius = radius.is_finite()
+            && radius >= 0.0
+            && center.is_finite()
+            && collider.friction.is_finite()
+            && collider.friction >= 0.0;
         match collider.response {
             SphereResponse::Projection if valid_radius => {
-                spheres.projection.push(Sphere { center, radius });
+                spheres.projection.push(Sphere {
+                    center,
+                    radius,
+                    friction: collider.friction,
+                });
             }
             SphereResponse::Penalty { stiffness }
                 if valid_radius && stiffness.is_finite() && stiffness >= 0.0 =>
@@ -164,8 +184,8 @@ fn gather_spheres(
             _ => {
                 if !warned.contains(&entity) {
                     warn!(
-                        "sphere collider {entity} skipped: radius {radius}, centre {center} and {:?} must be finite and non-negative",
-                        collider.response
+                        "sphere collider {entity} skipped: radius {radius}, centre {center}, friction {} and {:?} must be finite and non-negative",
+                        collider.friction, collider.response
                     );
                     warned.push(entity);
                 }
