@@ -97,7 +97,9 @@
 //! - [`PlaneCollider`] (a half-space: the ground, a slope, through its
 //!   entity with the normal along its local `+Y`), [`CapsuleCollider`] and
 //!   [`CuboidCollider`] / [`ShapeCollisionPlugin`]: projected after the step
-//!   with Coulomb friction ([`collision::project_shapes`]); every method.
+//!   with Coulomb friction ([`collision::project_shapes`]), or, with
+//!   [`ContactResponse::Penalty`], a penalty force inside the step like the
+//!   assignment's sphere ([`collision::PenaltySurface::Shape`]); every method.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
@@ -222,12 +224,15 @@
 //!                                only if Φ drops); v = (x − x₀)/dt
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
-//!             (penalty spheres act inside the step: forces, and stiffness in A; in pd,
+//!             (penalty spheres, planes, capsules, boxes act inside the step: forces, and stiffness in A; in pd,
 //!              projective terms with their stiffness on the matrix's diagonal)
 //!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)
 //! Collide:  for each cloth, each projection sphere: move vertices inside to the surface
+//!           (Coulomb friction if the sphere has some); then planes, capsules, boxes,
+//!           and (feature avian) every avian Collider: out along the contact normal,
+//!           then friction takes ≤ μ·(normal impulse) from the tangential velocity
 //! SyncOut:  for each cloth: no method stepped it? status NoMethod (warn once);
 //!           the guard's check again after collision (restore, stop);
 //!           send ClothDiverged for each rejected step and ClothNotConverged for
@@ -307,9 +312,9 @@ pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethod,
     ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus,
-    ClothSystems, ClothWorkspace, CuboidCollider, DivergenceReason, GuardAction, MethodPlugin,
-    PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
-    Wind, WindPlugin,
+    ClothSystems, ClothWorkspace, ContactResponse, CuboidCollider, DivergenceReason, GuardAction,
+    MethodPlugin, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+    SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -328,9 +333,9 @@ pub mod prelude {
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
         ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,
-        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, CuboidCollider,
-        DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
-        SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ContactResponse,
+        CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
+        SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,

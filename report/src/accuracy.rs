@@ -73,6 +73,7 @@ impl ReportScene {
                 center: Vec3A::new(0.0, -4.0, 4.0),
                 radius: 2.7,
                 stiffness: 1e4,
+                surface: Default::default(),
             }]
         } else {
             Vec::new()

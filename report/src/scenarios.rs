@@ -159,6 +159,7 @@ impl Scenario {
             center: Vec3A::new(0.0, -20.0, 0.0),
             radius: 2.7,
             stiffness: 1e4,
+            surface: Default::default(),
         });
         sphere.events.push(Event::MoveSphere {
             at_step: 30,

@@ -56,6 +56,7 @@ fn sphere() -> impl Strategy<Value = PenaltySphere> {
             center: Vec3A::new(x, y, z),
             radius,
             stiffness,
+            surface: Default::default(),
         })
 }
 

@@ -176,6 +176,7 @@ fn every_method_is_deterministic() {
         center: Vec3A::new(0.0, -4.0, 4.0),
         radius: 2.7,
         stiffness: 1e4,
+        surface: Default::default(),
     });
     for method in map_methods() {
         let a = bevy_cloth_report::scenarios::run(&scenario, &method);

@@ -28,6 +28,14 @@ use crate::model::{ClothModel, ClothState};
 /// a restoring normal stiffness and a tangential term of the opposite sign.
 /// See [`PenaltyJacobian`](crate::solver::linear::PenaltyJacobian) for how
 /// the implicit solvers use it.
+///
+/// # Other shapes
+///
+/// With [`surface`](Self::surface) set to [`PenaltySurface::Shape`], the
+/// same penalty acts against a plane, capsule or box (its contact distance
+/// already in its size): depth and normal from [`Shape::contact`]; the
+/// tangential term's `l` is the distance from a capsule's axis, and
+/// infinite (no term) on flat faces. `center` and `radius` are then unused.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PenaltySphere {
     /// Centre.
@@ -36,6 +44,76 @@ pub struct PenaltySphere {
     pub radius: f32,
     /// Penalty stiffness `c_pen`.
     pub stiffness: f32,
+    /// The sphere above, or another shape.
+    pub surface: PenaltySurface,
+}
+
+/// What a [`PenaltySphere`] pushes out of.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum PenaltySurface {
+    /// The sphere of its `center` and `radius`.
+    #[default]
+    Sphere,
+    /// A plane, capsule or box, grown by the contact distance.
+    Shape(Shape),
+}
+
+impl PenaltySphere {
+    /// A penalty sphere.
+    pub const fn sphere(center: Vec3A, radius: f32, stiffness: f32) -> Self {
+        Self {
+            center,
+            radius,
+            stiffness,
+            surface: PenaltySurface::Sphere,
+        }
+    }
+
+    /// A penalty plane, capsule or box (grown by the contact distance).
+    pub const fn shape(shape: Shape, stiffness: f32) -> Self {
+        Self {
+            center: Vec3A::ZERO,
+            radius: 0.0,
+            stiffness,
+            surface: PenaltySurface::Shape(shape),
+        }
+    }
+
+    /// The same collider grown by `by` (the cloth's particle radius).
+    #[must_use]
+    pub fn grown(mut self, by: f32) -> Self {
+        match &mut self.surface {
+            PenaltySurface::Sphere => self.radius += by,
+            PenaltySurface::Shape(shape) => *shape = shape.grown(by),
+        }
+        self
+    }
+
+    /// Whether the segment `a`–`b` (a vertex's motion over a step) comes
+    /// within a quarter of the contact distance of the surface (a sphere),
+    /// or touches the shape (any other): the vertices whose penalty may act
+    /// during the step.
+    pub fn near_segment(&self, a: Vec3A, b: Vec3A) -> bool {
+        match self.surface {
+            PenaltySurface::Sphere => {
+                let ab = b - a;
+                let len_sq = ab.length_squared();
+                let t = if len_sq > 0.0 {
+                    ((self.center - a).dot(ab) / len_sq).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let reach = 1.25 * self.radius;
+                (a + t * ab).distance_squared(self.center) < reach * reach
+            }
+            // Every point of the segment is within half its length of its
+            // middle, so this finds every segment that enters the shape.
+            PenaltySurface::Shape(shape) => {
+                let half = 0.5 * (b - a).length();
+                shape.contact(0.5 * (a + b), 1.25 * half + 1e-4).is_some()
+            }
+        }
+    }
 }
 
 /// One vertex's penalty contact.
@@ -56,6 +134,15 @@ impl PenaltySphere {
     /// vertex exactly at the centre is pushed along `+y`.
     #[inline]
     pub fn contact(&self, x: Vec3A) -> Option<PenaltyContact> {
+        if let PenaltySurface::Shape(shape) = &self.surface {
+            let (normal, depth) = shape.contact(x, 0.0)?;
+            return Some(PenaltyContact {
+                force: normal * (self.stiffness * depth),
+                normal,
+                depth,
+                distance: shape.curvature_radius(depth),
+            });
+        }
         let d = x - self.center;
         let dist_sq = d.length_squared();
         if dist_sq >= self.radius * self.radius {
@@ -93,6 +180,15 @@ pub struct PenaltyContact64 {
 impl PenaltySphere {
     /// [`contact`](Self::contact) in `f64`.
     pub fn contact_f64(&self, x: DVec3) -> Option<PenaltyContact64> {
+        if let PenaltySurface::Shape(shape) = &self.surface {
+            let (normal, depth) = shape.contact_f64(x)?;
+            return Some(PenaltyContact64 {
+                force: normal * (f64::from(self.stiffness) * depth),
+                normal,
+                depth,
+                distance: f64::from(shape.curvature_radius(depth as f32)),
+            });
+        }
         let d = x - self.center.as_dvec3();
         let distance = d.length();
         let radius = f64::from(self.radius);
@@ -266,6 +362,85 @@ impl Shape {
             }
         };
         (depth > 0.0).then_some((normal, depth))
+    }
+
+    /// [`contact`](Self::contact) without thickness, in `f64` (the exact
+    /// method's penalty needs more than `f32` to converge).
+    pub fn contact_f64(&self, x: DVec3) -> Option<(DVec3, f64)> {
+        let (normal, depth) = match self {
+            Shape::Plane(p) => {
+                let n = p.normal.as_dvec3();
+                (n, -n.dot(x - p.point.as_dvec3()))
+            }
+            Shape::Capsule(c) => {
+                let (a, b) = (c.a.as_dvec3(), c.b.as_dvec3());
+                let axis = b - a;
+                let len_sq = axis.length_squared();
+                let t = if len_sq > 0.0 {
+                    ((x - a).dot(axis) / len_sq).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let d = x - (a + t * axis);
+                let distance = d.length();
+                let normal = if distance > 0.0 {
+                    d / distance
+                } else if len_sq > 0.0 {
+                    (axis / len_sq.sqrt()).any_orthonormal_vector()
+                } else {
+                    DVec3::Y
+                };
+                (normal, f64::from(c.radius) - distance)
+            }
+            Shape::Cuboid(b) => {
+                let d = x - b.center.as_dvec3();
+                let axes = b.axes.map(Vec3A::as_dvec3);
+                let local = DVec3::new(d.dot(axes[0]), d.dot(axes[1]), d.dot(axes[2]));
+                let gap = b.half_extents.as_dvec3() - local.abs();
+                if gap.min_element() <= 0.0 {
+                    return None;
+                }
+                let k = if gap.x <= gap.y && gap.x <= gap.z {
+                    0
+                } else if gap.y <= gap.z {
+                    1
+                } else {
+                    2
+                };
+                let sign = if local[k] < 0.0 { -1.0 } else { 1.0 };
+                (axes[k] * sign, gap[k])
+            }
+        };
+        (depth > 0.0).then_some((normal, depth))
+    }
+
+    /// The radius of curvature at a contact of this depth, for the
+    /// penalty's tangential term: the distance from a capsule's axis,
+    /// infinite on flat faces.
+    pub fn curvature_radius(&self, depth: f32) -> f32 {
+        match self {
+            Shape::Capsule(c) => (c.radius - depth).max(0.0),
+            Shape::Plane(_) | Shape::Cuboid(_) => f32::INFINITY,
+        }
+    }
+
+    /// The same shape grown by `by` all round.
+    #[must_use]
+    pub fn grown(self, by: f32) -> Self {
+        match self {
+            Shape::Plane(p) => Shape::Plane(Plane {
+                point: p.point + by * p.normal,
+                ..p
+            }),
+            Shape::Capsule(c) => Shape::Capsule(Capsule {
+                radius: c.radius + by,
+                ..c
+            }),
+            Shape::Cuboid(b) => Shape::Cuboid(Cuboid {
+                half_extents: b.half_extents + Vec3A::splat(by),
+                ..b
+            }),
+        }
     }
 
     /// The friction coefficient.

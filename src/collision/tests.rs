@@ -183,3 +183,64 @@ fn a_sphere_with_friction_holds_what_a_frictionless_one_lets_slide() {
     let some = slide(0.5);
     assert!(some > 0.0 && some < free, "{some}");
 }
+
+#[test]
+fn penalty_shapes_match_their_projection_contacts_in_f32_and_f64() {
+    let shapes = [
+        Shape::Plane(Plane {
+            point: Vec3A::new(0.0, -1.0, 0.0),
+            normal: Vec3A::Y,
+            friction: 0.0,
+        }),
+        Shape::Capsule(Capsule {
+            a: Vec3A::new(-1.0, 0.0, 0.0),
+            b: Vec3A::new(1.0, 0.0, 0.0),
+            radius: 0.5,
+            friction: 0.0,
+        }),
+        Shape::Cuboid(Cuboid {
+            center: Vec3A::ZERO,
+            axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+            half_extents: Vec3A::new(1.0, 0.5, 2.0),
+            friction: 0.0,
+        }),
+    ];
+    let points = [
+        Vec3A::new(0.3, 0.2, 0.1),
+        Vec3A::new(0.9, -1.2, 0.0),
+        Vec3A::new(-0.2, 0.45, 1.9),
+        Vec3A::new(3.0, 3.0, 3.0),
+    ];
+    for shape in shapes {
+        let penalty = PenaltySphere::shape(shape, 100.0);
+        for x in points {
+            let f32_contact = shape.contact(x, 0.0);
+            let f64_contact = shape.contact_f64(x.as_dvec3());
+            assert_eq!(
+                f32_contact.is_some(),
+                f64_contact.is_some(),
+                "{shape:?} {x}"
+            );
+            if let (Some((n, d)), Some((n64, d64))) = (f32_contact, f64_contact) {
+                assert!((n.as_dvec3() - n64).length() < 1e-6 && (f64::from(d) - d64).abs() < 1e-6);
+                let c = penalty.contact(x).unwrap();
+                assert_eq!(c.force, n * (100.0 * d));
+                // The tangential term: none on flat faces, the axis
+                // distance on a capsule.
+                match shape {
+                    Shape::Capsule(_) => assert!((c.distance - (0.5 - d)).abs() < 1e-6),
+                    _ => assert_eq!(c.distance, f32::INFINITY),
+                }
+            }
+            assert!(penalty.contact(Vec3A::splat(9.0)).is_none());
+        }
+    }
+    // The near test finds a segment that passes through the plane.
+    let plane = PenaltySphere::shape(shapes[0], 1.0);
+    assert!(plane.near_segment(Vec3A::new(0.0, 1.0, 0.0), Vec3A::new(0.0, -3.0, 0.0)));
+    assert!(!plane.near_segment(Vec3A::new(0.0, 1.0, 0.0), Vec3A::new(0.0, 0.5, 0.0)));
+    // Grown by a particle radius: the plane rises.
+    let grown = plane.grown(0.25);
+    assert!(grown.contact(Vec3A::new(0.0, -0.8, 0.0)).is_some());
+    assert!(plane.contact(Vec3A::new(0.0, -0.8, 0.0)).is_none());
+}

@@ -43,7 +43,15 @@ pub struct ClothColliders {
     /// [`PlaneCollider`]s, [`CapsuleCollider`]s and [`CuboidCollider`]s by
     /// [`ShapeCollisionPlugin`].
     pub shapes: Vec<Shape>,
+    /// Planes, capsules and boxes with a [`ContactResponse::Penalty`]
+    /// response: penalty forces inside the step, as [`PenaltySphere`]s with
+    /// a [`PenaltySurface::Shape`](crate::collision::PenaltySurface::Shape).
+    pub penalty_shapes: Vec<PenaltySphere>,
 }
+
+/// How a plane, capsule or box acts on the cloth: the same two responses
+/// as a sphere's.
+pub type ContactResponse = SphereResponse;
 
 /// A sphere that every cloth collides with. Its centre is the entity's
 /// global translation (rotation and scale are ignored; the radius is the
@@ -179,6 +187,7 @@ fn gather_spheres(
                     center,
                     radius,
                     stiffness,
+                    surface: Default::default(),
                 });
             }
             _ => {
@@ -247,6 +256,9 @@ pub struct PlaneCollider {
     pub friction: f32,
     /// Extra distance above the surface at which contact happens (`≥ 0`).
     pub thickness: f32,
+    /// Projection after the step (with friction), or a penalty force inside
+    /// it (friction unused).
+    pub response: ContactResponse,
 }
 
 impl Default for PlaneCollider {
@@ -262,6 +274,17 @@ impl PlaneCollider {
         Self {
             friction,
             thickness: 0.0,
+            response: ContactResponse::Projection,
+        }
+    }
+
+    /// A frictionless plane pushing with a penalty force of this stiffness
+    /// inside the step.
+    pub const fn penalty(stiffness: f32) -> Self {
+        Self {
+            friction: 0.0,
+            thickness: 0.0,
+            response: ContactResponse::Penalty { stiffness },
         }
     }
 }
@@ -282,6 +305,8 @@ pub struct CapsuleCollider {
     pub friction: f32,
     /// Extra contact distance (`≥ 0`).
     pub thickness: f32,
+    /// Projection after the step, or a penalty force inside it.
+    pub response: ContactResponse,
 }
 
 impl CapsuleCollider {
@@ -292,7 +317,15 @@ impl CapsuleCollider {
             half_length,
             friction: 0.5,
             thickness: 0.0,
+            response: ContactResponse::Projection,
         }
+    }
+
+    /// The same capsule pushing with a penalty force inside the step.
+    #[must_use]
+    pub const fn with_penalty(mut self, stiffness: f32) -> Self {
+        self.response = ContactResponse::Penalty { stiffness };
+        self
     }
 }
 
@@ -310,6 +343,8 @@ pub struct CuboidCollider {
     pub friction: f32,
     /// Extra contact distance (`≥ 0`).
     pub thickness: f32,
+    /// Projection after the step, or a penalty force inside it.
+    pub response: ContactResponse,
 }
 
 impl CuboidCollider {
@@ -319,7 +354,15 @@ impl CuboidCollider {
             half_extents,
             friction: 0.5,
             thickness: 0.0,
+            response: ContactResponse::Projection,
         }
+    }
+
+    /// The same box pushing with a penalty force inside the step.
+    #[must_use]
+    pub const fn with_penalty(mut self, stiffness: f32) -> Self {
+        self.response = ContactResponse::Penalty { stiffness };
+        self
     }
 }
 
@@ -386,7 +429,7 @@ type ShapeColliders = (
 
 /// True while there are shape colliders, or shapes left from removed ones.
 fn shapes_present(colliders: Query<(), AnyShape>, gathered: Res<ClothColliders>) -> bool {
-    !colliders.is_empty() || !gathered.shapes.is_empty()
+    !colliders.is_empty() || !gathered.shapes.is_empty() || !gathered.penalty_shapes.is_empty()
 }
 
 /// Whether every value is finite and non-negative.
@@ -403,8 +446,13 @@ fn gather_shapes(
     mut gathered: ResMut<ClothColliders>,
     mut warned: Local<Vec<Entity>>,
 ) {
-    let shapes = &mut gathered.bypass_change_detection().shapes;
+    let ClothColliders {
+        shapes,
+        penalty_shapes,
+        ..
+    } = gathered.bypass_change_detection();
     shapes.clear();
+    penalty_shapes.clear();
     for (entity, plane, capsule, cuboid) in &colliders {
         let Ok(global) = helper.compute_global_transform(entity) else {
             continue;
@@ -414,16 +462,29 @@ fn gather_shapes(
         let axes =
             [Vec3::X, Vec3::Y, Vec3::Z].map(|a| Vec3A::from(rotation * a).normalize_or_zero());
         let placed = center.is_finite() && axes.iter().all(|a| *a != Vec3A::ZERO);
-        let mut push = |shape: Option<Shape>, what: &str, values: &[f32]| {
-            if placed && non_negative(values) {
-                shapes.extend(shape);
-            } else if !warned.contains(&entity) {
-                warn!(
-                    "{what} collider {entity} skipped: sizes, friction and thickness {values:?} must be finite and non-negative, and its transform finite"
-                );
-                warned.push(entity);
-            }
-        };
+        let mut push =
+            |shape: Option<Shape>, response: ContactResponse, what: &str, values: &[f32]| {
+                let stiffness = match response {
+                    ContactResponse::Projection => None,
+                    ContactResponse::Penalty { stiffness } => Some(stiffness),
+                };
+                let valid = non_negative(stiffness.as_slice());
+                match (shape, stiffness) {
+                    (Some(shape), None) if placed && non_negative(values) => shapes.push(shape),
+                    (Some(shape), Some(c)) if placed && valid && non_negative(values) => {
+                        penalty_shapes.push(PenaltySphere::shape(shape, c));
+                    }
+                    _ if !warned.contains(&entity) => {
+                        warn!(
+                            "{what} collider {entity} skipped: sizes, friction, thickness \
+                         {values:?} and {response:?} must be finite and non-negative, and its \
+                         transform finite"
+                        );
+                        warned.push(entity);
+                    }
+                    _ => {}
+                }
+            };
         if let Some(p) = plane {
             push(
                 Some(Shape::Plane(Plane {
@@ -431,6 +492,7 @@ fn gather_shapes(
                     normal: axes[1],
                     friction: p.friction,
                 })),
+                p.response,
                 "plane",
                 &[p.friction, p.thickness],
             );
@@ -443,6 +505,7 @@ fn gather_shapes(
                     radius: c.radius + c.thickness,
                     friction: c.friction,
                 })),
+                c.response,
                 "capsule",
                 &[c.radius, c.half_length, c.friction, c.thickness],
             );
@@ -455,6 +518,7 @@ fn gather_shapes(
                     half_extents: Vec3A::from(b.half_extents) + Vec3A::splat(b.thickness),
                     friction: b.friction,
                 })),
+                b.response,
                 "box",
                 &[
                     b.half_extents.x,

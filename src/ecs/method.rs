@@ -243,11 +243,13 @@ fn step_cloths<M: ClothMethod>(
             let params = params.step_params(dt);
             let ws = &mut *ws;
             ws.penalty.clear();
-            ws.penalty
-                .extend(colliders.penalty.iter().map(|s| PenaltySphere {
-                    radius: s.radius + particle_radius,
-                    ..*s
-                }));
+            ws.penalty.extend(
+                colliders
+                    .penalty
+                    .iter()
+                    .chain(&colliders.penalty_shapes)
+                    .map(|s| s.grown(particle_radius)),
+            );
             let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
             let model = &cloth.model;
             let method = &*method;

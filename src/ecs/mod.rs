@@ -19,8 +19,8 @@ use bevy::prelude::*;
 pub use crate::solver::guard::DivergenceReason;
 pub use attach::{Attachment, ClothAttachments};
 pub use collision::{
-    CapsuleCollider, ClothColliders, CuboidCollider, PlaneCollider, ShapeCollisionPlugin,
-    SphereCollider, SphereCollisionPlugin, SphereResponse,
+    CapsuleCollider, ClothColliders, ContactResponse, CuboidCollider, PlaneCollider,
+    ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
 };
 #[cfg(feature = "avian")]
 pub(crate) use collision::{

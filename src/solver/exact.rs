@@ -334,9 +334,8 @@ fn objective(
         let m = f64::from(m);
         e += 0.5 * m * inv_dt2 * (x[i] - x_tilde[i]).length_squared() - m * g.dot(x[i]);
         for s in spheres {
-            let d = f64::from(s.radius) - (x[i] - s.center.as_dvec3()).length();
-            if d > 0.0 {
-                e += 0.5 * f64::from(s.stiffness) * d * d;
+            if let Some(contact) = s.contact_f64(x[i]) {
+                e += 0.5 * f64::from(s.stiffness) * contact.depth * contact.depth;
             }
         }
     }
@@ -372,12 +371,8 @@ fn gradient(
         let m = f64::from(m);
         let mut v = (x[i] - x_tilde[i]) * (m * inv_dt2) - g * m;
         for s in spheres {
-            let dx = x[i] - s.center.as_dvec3();
-            let l = dx.length();
-            let d = f64::from(s.radius) - l;
-            if d > 0.0 {
-                let n = if l > 0.0 { dx / l } else { DVec3::Y };
-                v -= n * (f64::from(s.stiffness) * d);
+            if let Some(contact) = s.contact_f64(x[i]) {
+                v -= contact.force;
             }
         }
         add(i, v, out);

@@ -354,11 +354,10 @@ impl ProjectiveWorkspace {
         self.wanted_k.clear();
         self.wanted_k.resize(m, 0.0);
         for (s, sphere) in spheres.iter().enumerate().take(64) {
-            let reach = sphere.radius * 1.25;
             for (f, &i) in self.free.iter().enumerate() {
                 let end = x_tilde[i as usize];
                 let start = end - h * v[i as usize];
-                if segment_within(start, end, sphere.center, reach) {
+                if sphere.near_segment(start, end) {
                     self.near[f] |= 1 << s;
                     self.wanted_k[f] += f64::from(sphere.stiffness);
                 }
@@ -668,18 +667,6 @@ fn solve_small(a: &mut [f64], b: &mut [f64], n: usize, stride: usize) -> bool {
     b[..n].iter().all(|v| v.is_finite())
 }
 
-/// Whether the segment from `a` to `b` comes within `reach` of `center`.
-fn segment_within(a: Vec3A, b: Vec3A, center: Vec3A, reach: f32) -> bool {
-    let ab = b - a;
-    let len_sq = ab.length_squared();
-    let t = if len_sq > 0.0 {
-        ((center - a).dot(ab) / len_sq).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + t * ab).distance_squared(center) < reach * reach
-}
-
 impl Method for ProjectiveSolver {
     type Workspace = ProjectiveWorkspace;
 
@@ -928,6 +915,7 @@ mod tests {
             center: Vec3A::new(0.0, -4.0, 4.0),
             radius: 2.7,
             stiffness: 1e4,
+            surface: Default::default(),
         }];
         let start = swinging_onto(&model, &params, &spheres, 20);
         let touching = start
@@ -952,6 +940,7 @@ mod tests {
             center: Vec3A::new(0.0, -50.0, 0.0),
             radius: 1.0,
             stiffness: 1e4,
+            surface: Default::default(),
         }];
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let mut ws = ProjectiveWorkspace::default();

@@ -187,6 +187,7 @@ fn assembled_stiffness_matches_finite_differences_of_the_force() {
         center: x[10] + Vec3A::new(0.0, -0.05, 0.0),
         radius: 0.1,
         stiffness: 50.0,
+        surface: Default::default(),
     };
     let config = LinearImplicitSolver {
         penalty: PenaltyJacobian::Exact,
@@ -425,6 +426,7 @@ fn penalty_jacobians_differ_in_definiteness() {
         center: state.positions[2] - Vec3A::new(0.0, 0.05, 0.0),
         radius: 0.1,
         stiffness: 1e5,
+        surface: Default::default(),
     };
     let params = spec_params();
     let matrix = |penalty| {
@@ -493,6 +495,7 @@ fn a_penalty_sphere_pushes_particles_out() {
         center: Vec3A::new(0.0, 0.15, -0.1),
         radius: 0.15,
         stiffness: 100.0,
+        surface: Default::default(),
     };
     for config in [
         LinearImplicitSolver::default(),
