@@ -22,7 +22,7 @@ use bevy::picking::Pickable;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
-use common::{ScreenshotMode, checker_image};
+use common::ScreenshotMode;
 
 const USAGE: &str = "usage: assignment [--method M] [--rows R] [--cols C] [--h SECONDS] \
 [--stiffness E] [--mass TOTAL] [--screenshot FILE.png --frames N]";
@@ -79,16 +79,11 @@ fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), Str
 struct Sweeping;
 
 fn main() -> ExitCode {
-    let (options, screenshot) = match parse(std::env::args().skip(1).collect()) {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            if !e.is_empty() {
-                eprintln!("error: {e}");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
-    };
+    let (options, screenshot) =
+        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
+            Ok(parsed) => parsed,
+            Err(code) => return code,
+        };
     let mut app = common::windowed_app("bevy_cloth — assignment", options.h, screenshot);
     app.insert_resource(options)
         .add_systems(Startup, setup)
@@ -121,17 +116,13 @@ fn setup(
         .build()?;
     let mut cloth = commands.spawn((
         Mesh3d(meshes.add(cloth_mesh(&model))),
-        MeshMaterial3d(materials.add(StandardMaterial {
-            base_color_texture: Some(images.add(checker_image(
-                8,
-                Color::srgb(0.2, 0.6, 0.45),
-                Color::srgb(0.92, 0.92, 0.85),
-            ))),
-            double_sided: true,
-            cull_mode: None,
-            perceptual_roughness: 0.8,
-            ..default()
-        })),
+        MeshMaterial3d(common::checker_material(
+            &mut materials,
+            &mut images,
+            8,
+            Color::srgb(0.2, 0.6, 0.45),
+            Color::srgb(0.92, 0.92, 0.85),
+        )),
         Cloth::new(model),
         ClothParams::default()
             .with_stiffness(options.stiffness)

@@ -27,7 +27,7 @@ use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
-use common::{ScreenshotMode, checker_image};
+use common::ScreenshotMode;
 
 const USAGE: &str = "usage: flag [--method NAME] [--screenshot FILE.png --frames N]";
 
@@ -83,16 +83,11 @@ fn parse(mut args: Vec<String>) -> Result<(FlagOptions, Option<ScreenshotMode>),
 }
 
 fn main() -> ExitCode {
-    let (options, screenshot) = match parse(std::env::args().skip(1).collect()) {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            if !e.is_empty() {
-                eprintln!("error: {e}");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
-    };
+    let (options, screenshot) =
+        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
+            Ok(parsed) => parsed,
+            Err(code) => return code,
+        };
     let controls = WindControls {
         speed: 9.0,
         heading_degrees: 10.0,
@@ -142,17 +137,13 @@ fn setup(
             Pickable::IGNORE,
         ))
         .id();
-    let flag_material = materials.add(StandardMaterial {
-        base_color_texture: Some(images.add(checker_image(
-            8,
-            Color::srgb(0.15, 0.3, 0.75),
-            Color::srgb(0.95, 0.85, 0.2),
-        ))),
-        double_sided: true,
-        cull_mode: None,
-        perceptual_roughness: 0.8,
-        ..default()
-    });
+    let flag_material = common::checker_material(
+        &mut materials,
+        &mut images,
+        8,
+        Color::srgb(0.15, 0.3, 0.75),
+        Color::srgb(0.95, 0.85, 0.2),
+    );
     let mut flag = commands.spawn((
         Mesh3d(meshes.add(cloth_mesh(&model))),
         MeshMaterial3d(flag_material),

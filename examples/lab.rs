@@ -21,7 +21,7 @@ use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
 use bevy_cloth::ui::ClothResolution;
-use common::{ScreenshotMode, checker_image};
+use common::ScreenshotMode;
 
 const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|exact] \
 [--n N] [--screenshot FILE.png --frames N]";
@@ -66,16 +66,11 @@ fn lab_cloth(n: u32) -> Result<ClothModel, ClothBuildError> {
 }
 
 fn main() -> ExitCode {
-    let (options, screenshot) = match parse(std::env::args().skip(1).collect()) {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            if !e.is_empty() {
-                eprintln!("error: {e}");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
-    };
+    let (options, screenshot) =
+        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
+            Ok(parsed) => parsed,
+            Err(code) => return code,
+        };
     let mut app = common::windowed_app("bevy_cloth — lab", 0.0333, screenshot);
     app.insert_resource(options)
         .add_systems(Startup, setup)
@@ -108,17 +103,13 @@ fn setup(
     mut images: ResMut<Assets<Image>>,
 ) -> Result {
     let model = lab_cloth(options.n)?;
-    let cloth_material = materials.add(StandardMaterial {
-        base_color_texture: Some(images.add(checker_image(
-            10,
-            Color::srgb(0.85, 0.25, 0.2),
-            Color::srgb(0.95, 0.9, 0.8),
-        ))),
-        double_sided: true,
-        cull_mode: None,
-        perceptual_roughness: 0.8,
-        ..default()
-    });
+    let cloth_material = common::checker_material(
+        &mut materials,
+        &mut images,
+        10,
+        Color::srgb(0.85, 0.25, 0.2),
+        Color::srgb(0.95, 0.9, 0.8),
+    );
     let mut cloth = commands.spawn((
         Mesh3d(meshes.add(cloth_mesh(&model))),
         MeshMaterial3d(cloth_material),

@@ -235,6 +235,36 @@ pub fn screenshot_and_exit(
     }
 }
 
+/// A double-sided cloth material with a checkerboard texture
+/// ([`checker_image`]).
+pub fn checker_material(
+    materials: &mut Assets<StandardMaterial>,
+    images: &mut Assets<Image>,
+    cells: u32,
+    a: Color,
+    b: Color,
+) -> Handle<StandardMaterial> {
+    materials.add(StandardMaterial {
+        base_color_texture: Some(images.add(checker_image(cells, a, b))),
+        double_sided: true,
+        cull_mode: None,
+        perceptual_roughness: 0.8,
+        ..default()
+    })
+}
+
+/// The parsed arguments, or the error and `usage` printed and exit code 2
+/// (`-h` parses to an empty error: the usage alone).
+pub fn or_usage<T>(parsed: Result<T, String>, usage: &str) -> Result<T, ExitCode> {
+    parsed.map_err(|e| {
+        if !e.is_empty() {
+            eprintln!("error: {e}");
+        }
+        eprintln!("{usage}");
+        ExitCode::from(2)
+    })
+}
+
 /// A checkerboard texture (`cells×cells`, two colours) that makes folds
 /// readable on a cloth.
 pub fn checker_image(cells: u32, a: Color, b: Color) -> Image {

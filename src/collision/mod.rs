@@ -181,7 +181,7 @@ impl PenaltySphere {
     /// [`contact`](Self::contact) in `f64`.
     pub fn contact_f64(&self, x: DVec3) -> Option<PenaltyContact64> {
         if let PenaltySurface::Shape(shape) = &self.surface {
-            let (normal, depth) = shape.contact_f64(x)?;
+            let (normal, depth) = shape.contact_f64(x, 0.0)?;
             return Some(PenaltyContact64 {
                 force: normal * (f64::from(self.stiffness) * depth),
                 normal,
@@ -317,60 +317,21 @@ pub enum Shape {
 impl Shape {
     /// For a point within `thickness` of the solid: the unit direction to
     /// push it along and how far (`depth > 0`) to reach `thickness` outside.
+    /// Computed in `f64` ([`contact_f64`](Self::contact_f64)), one code
+    /// path for the projection and the penalty.
+    #[inline]
     pub fn contact(&self, x: Vec3A, thickness: f32) -> Option<(Vec3A, f32)> {
-        let (normal, depth) = match self {
-            Shape::Plane(p) => (p.normal, thickness - p.normal.dot(x - p.point)),
-            Shape::Capsule(c) => {
-                let axis = c.b - c.a;
-                let len_sq = axis.length_squared();
-                let t = if len_sq > 0.0 {
-                    ((x - c.a).dot(axis) / len_sq).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                let d = x - (c.a + t * axis);
-                let distance = d.length();
-                // On the axis: out along any direction across it (+y for a
-                // capsule of zero length, a sphere, as `project_spheres`).
-                let normal = if distance > 0.0 {
-                    d / distance
-                } else if len_sq > 0.0 {
-                    (axis / len_sq.sqrt()).any_orthonormal_vector()
-                } else {
-                    Vec3A::Y
-                };
-                (normal, c.radius + thickness - distance)
-            }
-            Shape::Cuboid(b) => {
-                let d = x - b.center;
-                let local = Vec3A::new(d.dot(b.axes[0]), d.dot(b.axes[1]), d.dot(b.axes[2]));
-                let grown = b.half_extents + Vec3A::splat(thickness);
-                let gap = grown - local.abs();
-                if gap.min_element() <= 0.0 {
-                    return None;
-                }
-                // Inside: out through the nearest face.
-                let k = if gap.x <= gap.y && gap.x <= gap.z {
-                    0
-                } else if gap.y <= gap.z {
-                    1
-                } else {
-                    2
-                };
-                let sign = if local[k] < 0.0 { -1.0 } else { 1.0 };
-                (b.axes[k] * sign, gap[k])
-            }
-        };
-        (depth > 0.0).then_some((normal, depth))
+        self.contact_f64(x.as_dvec3(), f64::from(thickness))
+            .map(|(normal, depth)| (normal.as_vec3a(), depth as f32))
     }
 
-    /// [`contact`](Self::contact) without thickness, in `f64` (the exact
-    /// method's penalty needs more than `f32` to converge).
-    pub fn contact_f64(&self, x: DVec3) -> Option<(DVec3, f64)> {
+    /// [`contact`](Self::contact) in `f64` (the exact method's penalty
+    /// needs more than `f32` to converge).
+    pub fn contact_f64(&self, x: DVec3, thickness: f64) -> Option<(DVec3, f64)> {
         let (normal, depth) = match self {
             Shape::Plane(p) => {
                 let n = p.normal.as_dvec3();
-                (n, -n.dot(x - p.point.as_dvec3()))
+                (n, thickness - n.dot(x - p.point.as_dvec3()))
             }
             Shape::Capsule(c) => {
                 let (a, b) = (c.a.as_dvec3(), c.b.as_dvec3());
@@ -383,6 +344,8 @@ impl Shape {
                 };
                 let d = x - (a + t * axis);
                 let distance = d.length();
+                // On the axis: out along any direction across it (+y for a
+                // capsule of zero length, a sphere, as `project_spheres`).
                 let normal = if distance > 0.0 {
                     d / distance
                 } else if len_sq > 0.0 {
@@ -390,16 +353,17 @@ impl Shape {
                 } else {
                     DVec3::Y
                 };
-                (normal, f64::from(c.radius) - distance)
+                (normal, f64::from(c.radius) + thickness - distance)
             }
             Shape::Cuboid(b) => {
                 let d = x - b.center.as_dvec3();
                 let axes = b.axes.map(Vec3A::as_dvec3);
                 let local = DVec3::new(d.dot(axes[0]), d.dot(axes[1]), d.dot(axes[2]));
-                let gap = b.half_extents.as_dvec3() - local.abs();
+                let gap = b.half_extents.as_dvec3() + DVec3::splat(thickness) - local.abs();
                 if gap.min_element() <= 0.0 {
                     return None;
                 }
+                // Inside: out through the nearest face.
                 let k = if gap.x <= gap.y && gap.x <= gap.z {
                     0
                 } else if gap.y <= gap.z {

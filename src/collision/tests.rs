@@ -215,7 +215,7 @@ fn penalty_shapes_match_their_projection_contacts_in_f32_and_f64() {
         let penalty = PenaltySphere::shape(shape, 100.0);
         for x in points {
             let f32_contact = shape.contact(x, 0.0);
-            let f64_contact = shape.contact_f64(x.as_dvec3());
+            let f64_contact = shape.contact_f64(x.as_dvec3(), 0.0);
             assert_eq!(
                 f32_contact.is_some(),
                 f64_contact.is_some(),

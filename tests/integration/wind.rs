@@ -95,43 +95,35 @@ fn still_air_only_slows_a_falling_cloth() {
     }
 }
 
+/// The lab cloth under pd after 40 steps in `wind`.
+fn lab_in(wind: Wind) -> Vec<Vec3A> {
+    let mut app = app();
+    app.insert_resource(wind);
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth::build(ClothBuilder::lab()).unwrap(),
+            ProjectiveSolver::default(),
+            Transform::default(),
+        ))
+        .id();
+    run_steps(&mut app, 40);
+    positions(&app, cloth)
+}
+
 #[test]
 fn gusts_are_the_same_run_after_run_and_the_seed_changes_them() {
+    let steady = Wind::new(Vec3::new(0.0, 0.0, 8.0));
     let gusty = |seed: u64| {
-        let mut app = app();
-        app.insert_resource(Wind {
+        lab_in(Wind {
             seed,
-            ..Wind::new(Vec3::new(0.0, 0.0, 8.0)).with_turbulence(0.6)
-        });
-        let cloth = app
-            .world_mut()
-            .spawn((
-                Cloth::build(ClothBuilder::lab()).unwrap(),
-                ProjectiveSolver::default(),
-                Transform::default(),
-            ))
-            .id();
-        run_steps(&mut app, 40);
-        positions(&app, cloth)
+            ..steady.with_turbulence(0.6)
+        })
     };
     let a = gusty(3);
     assert_eq!(a, gusty(3));
     assert_ne!(a, gusty(4));
-    let steady = {
-        let mut app = app();
-        app.insert_resource(Wind::new(Vec3::new(0.0, 0.0, 8.0)));
-        let cloth = app
-            .world_mut()
-            .spawn((
-                Cloth::build(ClothBuilder::lab()).unwrap(),
-                ProjectiveSolver::default(),
-                Transform::default(),
-            ))
-            .id();
-        run_steps(&mut app, 40);
-        positions(&app, cloth)
-    };
-    assert_ne!(a, steady);
+    assert_ne!(a, lab_in(steady));
 }
 
 #[test]
