@@ -4,7 +4,7 @@ use bevy::math::Vec3A;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 
-use crate::common::{app, positions, run_steps, stats};
+use crate::common::{app, positions, run_steps, spawn_every_preset, stats};
 
 fn spawn_unpinned(app: &mut App, n: usize, at: Transform) -> Entity {
     let cloth = Cloth::build(ClothBuilder::lab_grid(n)).unwrap();
@@ -163,20 +163,7 @@ fn penalty_planes_and_boxes_hold_a_cloth_under_every_method() {
         CuboidCollider::new(Vec3::new(1.5, 0.5, 1.5)).with_penalty(800.0),
         Transform::from_xyz(0.0, -2.5, 0.0),
     ));
-    let cloths: Vec<(&bevy_cloth::Preset, Entity)> = PRESETS
-        .iter()
-        .map(|p| {
-            let e = app
-                .world_mut()
-                .spawn((
-                    Cloth::build(ClothBuilder::lab_grid(11)).unwrap(),
-                    Transform::default(),
-                ))
-                .id();
-            p.method.insert(&mut app.world_mut().commands().entity(e));
-            (p, e)
-        })
-        .collect();
+    let cloths = spawn_every_preset(&mut app, &ClothBuilder::lab_grid(11));
     run_steps(&mut app, 60);
     let mut held = 0;
     for (p, e) in cloths {

@@ -89,3 +89,22 @@ pub fn allow_long_steps(app: &mut App, dt: f64) {
         .resource_mut::<Time<Virtual>>()
         .set_max_delta(Duration::from_secs_f64(dt.max(0.25)));
 }
+
+/// One cloth of `builder` per preset, at the origin, each with its preset's
+/// method.
+pub fn spawn_every_preset(
+    app: &mut App,
+    builder: &ClothBuilder,
+) -> Vec<(&'static bevy_cloth::Preset, Entity)> {
+    PRESETS
+        .iter()
+        .map(|p| {
+            let e = app
+                .world_mut()
+                .spawn((Cloth::build(builder.clone()).unwrap(), Transform::default()))
+                .id();
+            p.method.insert(&mut app.world_mut().commands().entity(e));
+            (p, e)
+        })
+        .collect()
+}

@@ -1,8 +1,8 @@
 //! Plugin mechanics: schedule, pins, method switching, errors, guard.
 
 use bevy::prelude::*;
+use bevy_cloth::ClothMethods;
 use bevy_cloth::prelude::*;
-use bevy_cloth::{ClothMethods, Preset};
 
 use crate::common::*;
 
@@ -365,20 +365,7 @@ fn pausing_stops_every_cloth_and_single_steps_run_one_step() {
 #[test]
 fn teleporting_the_cloth_entity_and_the_sphere_never_lets_a_nan_out() {
     let mut app = app();
-    let cloths: Vec<(&Preset, Entity)> = PRESETS
-        .iter()
-        .map(|m| {
-            let e = app
-                .world_mut()
-                .spawn((
-                    Cloth::build(ClothBuilder::lab()).unwrap(),
-                    Transform::default(),
-                ))
-                .id();
-            m.method.insert(&mut app.world_mut().commands().entity(e));
-            (m, e)
-        })
-        .collect();
+    let cloths = spawn_every_preset(&mut app, &ClothBuilder::lab());
     let sphere = app
         .world_mut()
         .spawn((

@@ -4,7 +4,7 @@
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 
-use crate::common::{app, positions, run_steps, stats};
+use crate::common::{app, positions, run_steps, spawn_every_preset, stats};
 
 /// Every preset's lab cloth in one app, optionally in `wind`, after `steps`
 /// fixed steps: each cloth's positions, and whether it is still running.
@@ -13,24 +13,11 @@ fn blow_every_preset(wind: Option<Wind>, steps: u64) -> Vec<(&'static str, Vec<V
     if let Some(wind) = wind {
         app.insert_resource(wind);
     }
-    let cloths: Vec<(&'static str, Entity)> = PRESETS
-        .iter()
-        .map(|p| {
-            let e = app
-                .world_mut()
-                .spawn((
-                    Cloth::build(ClothBuilder::lab()).unwrap(),
-                    Transform::default(),
-                ))
-                .id();
-            p.method.insert(&mut app.world_mut().commands().entity(e));
-            (p.name(), e)
-        })
-        .collect();
+    let cloths = spawn_every_preset(&mut app, &ClothBuilder::lab());
     run_steps(&mut app, steps);
     cloths
         .into_iter()
-        .map(|(name, e)| (name, positions(&app, e), stats(&app, e).is_running()))
+        .map(|(p, e)| (p.name(), positions(&app, e), stats(&app, e).is_running()))
         .collect()
 }
 
