@@ -18,9 +18,8 @@
 //! transform, computed from the `Transform` hierarchy; its scale is avian's
 //! (`Collider::shape_scaled`).
 
+use crate::ecs::scheduled_plugin;
 use avian3d::prelude::{Collider, Friction, Sensor};
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
@@ -28,29 +27,12 @@ use crate::collision::project_contacts;
 use crate::ecs::{ClothCorePlugin, ClothSystems, project_after_shapes};
 use crate::{Cloth, ClothParams};
 
-/// Cloths against every avian [`Collider`] (see the [module](self) docs).
-/// Part of [`ClothPlugins`](crate::ClothPlugins) when the `avian` feature
-/// is on. Needs no avian plugin to read colliders; add avian's
-/// `PhysicsPlugins` for them to move.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct AvianCollisionPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl AvianCollisionPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for AvianCollisionPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
+scheduled_plugin! {
+    /// Cloths against every avian [`Collider`] (see the [module](self) docs).
+    /// Part of [`ClothPlugins`](crate::ClothPlugins) when the `avian` feature
+    /// is on. Needs no avian plugin to read colliders; add avian's
+    /// `PhysicsPlugins` for them to move.
+    AvianCollisionPlugin
 }
 
 impl Plugin for AvianCollisionPlugin {

@@ -223,9 +223,11 @@ pub struct Sphere {
 
 /// Projects every free vertex out of every sphere grown by `thickness` (the
 /// cloth's particle radius; the lab uses 0) per the lab's equation 4, and
-/// returns how many projections were made. With a sphere's `friction > 0`,
-/// Coulomb friction follows each projection as in [`project_shapes`]
-/// (with 0, the lab's, exactly equation 4). `dt` must be positive.
+/// returns how many projections were made: equation 4 as
+/// [`project_contacts`] applies it (the vertex moved by its depth along the
+/// normal, the velocity by the same over `dt`), then Coulomb friction for a
+/// sphere with `friction > 0` (0, the lab's, is none). `dt` must be
+/// positive.
 pub fn project_spheres(
     model: &ClothModel,
     state: &mut ClothState,
@@ -233,35 +235,16 @@ pub fn project_spheres(
     thickness: f32,
     dt: f32,
 ) -> usize {
-    let pinned = model.pinned();
-    let inv_dt = 1.0 / dt;
-    let mut count = 0;
-    let ClothState {
-        positions,
-        velocities,
-    } = state;
-    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
-        if pinned[i] {
-            continue;
-        }
-        for s in spheres {
-            let radius = s.radius + thickness;
-            let d = *x - s.center;
-            let dist_sq = d.length_squared();
-            if dist_sq < radius * radius {
-                let dist = dist_sq.sqrt();
-                let dir = if dist > 0.0 { d / dist } else { Vec3A::Y };
-                let target = s.center + radius * dir;
-                *v += (target - *x) * inv_dt;
-                *x = target;
-                count += 1;
-                if s.friction > 0.0 {
-                    friction(x, v, dir, (radius - dist) * inv_dt, s.friction, dt);
-                }
-            }
-        }
-    }
-    count
+    project_contacts(model, state, spheres, dt, |s, x| {
+        let radius = s.radius + thickness;
+        let d = x - s.center;
+        let dist_sq = d.length_squared();
+        (dist_sq < radius * radius).then(|| {
+            let dist = dist_sq.sqrt();
+            let dir = if dist > 0.0 { d / dist } else { Vec3A::Y };
+            (dir, radius - dist, s.friction)
+        })
+    })
 }
 
 /// A half-space `{x : n·(x − p) ≥ 0}` (the ground, a floor, a slope) with

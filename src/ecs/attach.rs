@@ -115,6 +115,10 @@ impl ClothAttachments {
 pub(crate) struct HoldMemory {
     warned: Vec<(Entity, Entity)>,
     held: Vec<bool>,
+    /// (vertex, where it is held) of the cloth at hand.
+    targets: Vec<(u32, Vec3A)>,
+    gone: Vec<usize>,
+    attached: Vec<u32>,
 }
 
 /// In `SyncIn`, after the cloths are placed and their own pins moved:
@@ -128,7 +132,13 @@ pub(crate) fn hold_attached(
     mut memory: Local<HoldMemory>,
 ) {
     let dt = time.delta_secs();
-    let HoldMemory { warned, held } = &mut *memory;
+    let HoldMemory {
+        warned,
+        held,
+        targets,
+        gone,
+        attached,
+    } = &mut *memory;
     for (entity, mut cloth, mut attachments) in &mut cloths {
         let cloth = &mut *cloth;
         if !cloth.initialized {
@@ -138,9 +148,9 @@ pub(crate) fn hold_attached(
         held.clear();
         held.resize(n, false);
         // (vertex, where it is held) for every valid attachment, first wins.
-        let mut targets: Vec<(u32, Vec3A)> = Vec::new();
+        targets.clear();
+        gone.clear();
         {
-            let mut gone = Vec::new();
             for (k, a) in attachments.0.iter().enumerate() {
                 let Ok(global) = helper.compute_global_transform(a.target) else {
                     warn!(
@@ -183,13 +193,14 @@ pub(crate) fn hold_attached(
                 }
             }
             // Removing the dead ones is what the warning said.
-            for k in gone.into_iter().rev() {
+            for &k in gone.iter().rev() {
                 attachments.0.remove(k);
             }
         }
-        let mut attached: Vec<u32> = targets.iter().map(|&(v, _)| v).collect();
+        attached.clear();
+        attached.extend(targets.iter().map(|&(v, _)| v));
         attached.sort_unstable();
-        if attached != cloth.attached {
+        if *attached != cloth.attached {
             let mut pins: Vec<u32> = cloth
                 .own_pins
                 .iter()
@@ -203,7 +214,7 @@ pub(crate) fn hold_attached(
                 warn!("cloth {entity}: attachments not applied: {error}");
                 continue;
             }
-            for &(v, _) in &targets {
+            for &(v, _) in targets.iter() {
                 if cloth.attached.binary_search(&v).is_err() {
                     cloth.state.velocities[v as usize] = Vec3A::ZERO;
                     cloth.state.positions[v as usize] = Vec3A::NAN;
@@ -222,9 +233,9 @@ pub(crate) fn hold_attached(
                     cloth.state.velocities[v as usize] = Vec3A::ZERO;
                 }
             }
-            cloth.attached = attached;
+            cloth.attached.clone_from(attached);
         }
-        for (v, target) in targets {
+        for &(v, target) in targets.iter() {
             let v = v as usize;
             let old = cloth.state.positions[v];
             // A vertex attached this step (marked NaN above) starts at rest.

@@ -1,7 +1,5 @@
 //! Sphere, plane, capsule and box colliders as components and plugins.
 
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
@@ -99,28 +97,11 @@ impl SphereCollider {
     }
 }
 
-/// Adds sphere collision: every cloth against every [`SphereCollider`] —
-/// penalty spheres inside each method's step, projection spheres after it
-/// in [`ClothSystems::Collide`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct SphereCollisionPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl SphereCollisionPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for SphereCollisionPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
+scheduled_plugin! {
+    /// Adds sphere collision: every cloth against every [`SphereCollider`] —
+    /// penalty spheres inside each method's step, projection spheres after it
+    /// in [`ClothSystems::Collide`].
+    SphereCollisionPlugin
 }
 
 impl Plugin for SphereCollisionPlugin {
@@ -366,28 +347,11 @@ impl CuboidCollider {
     }
 }
 
-/// Adds plane, capsule and box collision: every cloth against every
-/// [`PlaneCollider`], [`CapsuleCollider`] and [`CuboidCollider`], in
-/// [`ClothSystems::Collide`] (after the projection spheres).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct ShapeCollisionPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl ShapeCollisionPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for ShapeCollisionPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
+scheduled_plugin! {
+    /// Adds plane, capsule and box collision: every cloth against every
+    /// [`PlaneCollider`], [`CapsuleCollider`] and [`CuboidCollider`], in
+    /// [`ClothSystems::Collide`] (after the projection spheres).
+    ShapeCollisionPlugin
 }
 
 impl Plugin for ShapeCollisionPlugin {

@@ -5,6 +5,36 @@
 //! [`solver`](crate::solver) and [`collision`](crate::collision), which know
 //! nothing of entities, schedules or time.
 
+/// A plugin that runs its systems in a schedule given at construction
+/// (`FixedUpdate` by default): the struct, `new` and `Default`.
+macro_rules! scheduled_plugin {
+    ($(#[$meta:meta])* $name:ident) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub struct $name {
+            schedule: bevy::ecs::intern::Interned<dyn bevy::ecs::schedule::ScheduleLabel>,
+        }
+
+        impl $name {
+            /// Runs in `schedule`.
+            pub fn new(schedule: impl bevy::ecs::schedule::ScheduleLabel) -> Self {
+                Self {
+                    schedule: schedule.intern(),
+                }
+            }
+        }
+
+        impl Default for $name {
+            /// `FixedUpdate`.
+            fn default() -> Self {
+                Self::new(bevy::prelude::FixedUpdate)
+            }
+        }
+    };
+}
+#[cfg(feature = "avian")]
+pub(crate) use scheduled_plugin;
+
 mod attach;
 mod collision;
 mod components;

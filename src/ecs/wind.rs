@@ -1,7 +1,5 @@
 //! Wind and air drag as a resource, a component and a plugin.
 
-use bevy::ecs::intern::Interned;
-use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
@@ -106,28 +104,11 @@ impl ClothAerodynamics {
     }
 }
 
-/// Adds wind and air: while a [`Wind`] resource exists, every running cloth
-/// gets per-triangle drag and lift in [`ClothSystems::Forces`], before its
-/// method steps, as an explicit external force (so for every method).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct WindPlugin {
-    schedule: Interned<dyn ScheduleLabel>,
-}
-
-impl WindPlugin {
-    /// Runs in `schedule`.
-    pub fn new(schedule: impl ScheduleLabel) -> Self {
-        Self {
-            schedule: schedule.intern(),
-        }
-    }
-}
-
-impl Default for WindPlugin {
-    /// `FixedUpdate`.
-    fn default() -> Self {
-        Self::new(FixedUpdate)
-    }
+scheduled_plugin! {
+    /// Adds wind and air: while a [`Wind`] resource exists, every running cloth
+    /// gets per-triangle drag and lift in [`ClothSystems::Forces`], before its
+    /// method steps, as an explicit external force (so for every method).
+    WindPlugin
 }
 
 impl Plugin for WindPlugin {
