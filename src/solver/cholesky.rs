@@ -3,13 +3,15 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::SparseColMatRef;
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::{Conj, MatMut, Par, Side};
 
 use super::SolveError;
+use super::kernels::{dot, parallel_pool};
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
 /// analysis is done once for a sparsity pattern and reused by every
@@ -23,12 +25,33 @@ pub struct SparseCholesky {
     columns: usize,
     /// True once `factor` holds a numeric LLᵀ factorisation.
     factored: bool,
+    /// [`solve_factored_xyz`](Self::solve_factored_xyz)'s permuted
+    /// right-hand side and its per-supernode scratch.
+    xyz: Vec<f64>,
+    xyz_tmp: Vec<[f64; 3]>,
+    xyz_tmp2: Vec<[f64; 2]>,
+    xyz_tmp1: Vec<[f64; 1]>,
+    /// Forces a simplicial (`Some(false)`) or supernodal (`Some(true)`)
+    /// factor; faer chooses by the factorisation's flop count otherwise.
+    supernodal: Option<bool>,
 }
 
 impl SparseCholesky {
     /// Forgets the symbolic analysis (the pattern changed).
     pub fn reset(&mut self) {
-        *self = Self::default();
+        *self = Self {
+            supernodal: self.supernodal,
+            ..Self::default()
+        };
+    }
+
+    /// A factorisation that is always supernodal (`true`) or always
+    /// simplicial (`false`), whatever faer's heuristic would choose.
+    pub fn forced(supernodal: bool) -> Self {
+        Self {
+            supernodal: Some(supernodal),
+            ..Self::default()
+        }
     }
 
     fn analyse(
@@ -42,7 +65,14 @@ impl SparseCholesky {
                 a.symbolic(),
                 Side::Lower,
                 SymmetricOrdering::Amd,
-                CholeskySymbolicParams::default(),
+                CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: match self.supernodal {
+                        None => SupernodalThreshold::AUTO,
+                        Some(true) => SupernodalThreshold::FORCE_SUPERNODAL,
+                        Some(false) => SupernodalThreshold::FORCE_SIMPLICIAL,
+                    },
+                    ..Default::default()
+                },
             )
             .map_err(|_| SolveError::Factorization)?;
             self.factor.resize(sym.len_val(), 0.0);
@@ -176,5 +206,298 @@ impl SparseCholesky {
         } else {
             Err(SolveError::Factorization)
         }
+    }
+
+    /// Solves `A X = rhs` for three right-hand sides (`rhs` column-major,
+    /// `n×3`) with the factor of the last
+    /// [`factorize_llt`](Self::factorize_llt): the same result as
+    /// [`solve_factored`](Self::solve_factored) with three columns.
+    ///
+    /// Hand-written on faer's factor: faer's general solve runs one small
+    /// dense product per supernode through its matrix-multiply dispatch,
+    /// which for three columns costs more than the arithmetic. Here each
+    /// supernode's columns are contiguous `axpy`s and dot products over the
+    /// three columns, which the compiler vectorises (the CHANGELOG has the
+    /// perf page's pd rows before and after).
+    pub fn solve_factored_xyz(
+        &mut self,
+        rhs: &mut [f64],
+        parallel: bool,
+    ) -> Result<(), SolveError> {
+        let (Some(sym), true) = (self.symbolic.as_ref(), self.factored) else {
+            return Err(SolveError::Factorization);
+        };
+        let n = sym.nrows();
+        if rhs.len() != 3 * n {
+            return Err(SolveError::Factorization);
+        }
+        let SymbolicCholeskyRaw::Supernodal(s) = sym.raw() else {
+            // faer's simplicial solve is as fast as a hand-written one.
+            return self.solve_factored(rhs, 3);
+        };
+        let x = &mut self.xyz;
+        x.clear();
+        match sym.perm() {
+            Some(perm) => {
+                for c in 0..3 {
+                    let column = &rhs[c * n..(c + 1) * n];
+                    x.extend(perm.arrays().0.iter().map(|&p| column[p]));
+                }
+            }
+            None => x.extend_from_slice(rhs),
+        }
+        let (x0, rest) = x.split_at_mut(n);
+        let (x1, x2) = rest.split_at_mut(n);
+        let supernodes = (0..s.n_supernodes()).map(|k| Supernode {
+            start: s.supernode_begin()[k],
+            size: s.supernode_end()[k] - s.supernode_begin()[k],
+            pattern: &s.row_idx()[s.col_ptr_for_row_idx()[k]..s.col_ptr_for_row_idx()[k + 1]],
+            values: &self.factor[s.col_ptr_for_val()[k]..s.col_ptr_for_val()[k + 1]],
+        });
+        match parallel_pool(parallel, self.factor.len()) {
+            // x and y on one thread, z on another (the columns are
+            // independent, and each is computed exactly as serially).
+            Some(pool) => {
+                let (tmp2, tmp1) = (&mut self.xyz_tmp2, &mut self.xyz_tmp1);
+                let first = supernodes.clone();
+                pool.scope(|scope| {
+                    scope.spawn(async move { supernodal_solve(first, [x0, x1], tmp2) });
+                    scope.spawn(async move { supernodal_solve(supernodes, [x2], tmp1) });
+                });
+            }
+            None => supernodal_solve(supernodes, [x0, x1, x2], &mut self.xyz_tmp),
+        }
+        let x = &self.xyz;
+        match sym.perm() {
+            Some(perm) => {
+                for c in 0..3 {
+                    let (column, solved) = (&mut rhs[c * n..(c + 1) * n], &x[c * n..]);
+                    for (r, &p) in column.iter_mut().zip(perm.arrays().1) {
+                        *r = solved[p];
+                    }
+                }
+            }
+            None => rhs.copy_from_slice(x),
+        }
+        if rhs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(SolveError::Factorization)
+        }
+    }
+}
+
+/// One supernode of a supernodal factor: columns `start..start + size`, its
+/// rows below the diagonal block (`pattern`), and its values column-major
+/// (`size + pattern.len()` rows: the lower-triangular diagonal block, then
+/// the rows of `pattern`).
+#[derive(Clone, Copy)]
+struct Supernode<'a> {
+    start: usize,
+    size: usize,
+    pattern: &'a [usize],
+    values: &'a [f64],
+}
+
+impl Supernode<'_> {
+    /// Column `j`: its diagonal block part (from the diagonal down) and its
+    /// rows below the block.
+    fn column(&self, j: usize) -> (&[f64], &[f64]) {
+        let rows = self.size + self.pattern.len();
+        self.values[j * rows + j..(j + 1) * rows].split_at(self.size - j)
+    }
+
+    /// This supernode's part of `x ← L⁻¹ x` for `C` columns: the
+    /// triangular diagonal block, then `L_below · x_block` accumulated in
+    /// `tmp` (the columns interleaved) and subtracted from the rows of
+    /// `pattern`. Each column's arithmetic is the same whatever `C`.
+    fn forward<const C: usize>(&self, x: &mut [&mut [f64]; C], tmp: &mut Vec<[f64; C]>) {
+        tmp.clear();
+        tmp.resize(self.pattern.len(), [0.0; C]);
+        let end = self.start + self.size;
+        for j in 0..self.size {
+            let (block, rows) = self.column(j);
+            let at = self.start + j;
+            let xj: [f64; C] = core::array::from_fn(|c| {
+                let v = x[c][at] / block[0];
+                x[c][at] = v;
+                axpy(&mut x[c][at + 1..end], -v, &block[1..]);
+                v
+            });
+            for (t, &l) in tmp.iter_mut().zip(rows) {
+                for c in 0..C {
+                    t[c] += l * xj[c];
+                }
+            }
+        }
+        for (&i, t) in self.pattern.iter().zip(tmp.iter()) {
+            for c in 0..C {
+                x[c][i] -= t[c];
+            }
+        }
+    }
+
+    /// This supernode's part of `x ← L⁻ᵀ x` for `C` columns (supernodes
+    /// taken in reverse order): the rows of `pattern` gathered into `tmp`,
+    /// then the block's columns from the last, each a dot product with what
+    /// is solved (two running sums per column).
+    fn backward<const C: usize>(&self, x: &mut [&mut [f64]; C], tmp: &mut Vec<[f64; C]>) {
+        tmp.clear();
+        tmp.extend(
+            self.pattern
+                .iter()
+                .map(|&i| core::array::from_fn::<f64, C, _>(|c| x[c][i])),
+        );
+        let end = self.start + self.size;
+        for j in (0..self.size).rev() {
+            let (block, rows) = self.column(j);
+            let at = self.start + j;
+            let mut sum = [[0.0f64; C]; 2];
+            for (l, t) in rows.chunks_exact(2).zip(tmp.chunks_exact(2)) {
+                for h in 0..2 {
+                    for c in 0..C {
+                        sum[h][c] += l[h] * t[h][c];
+                    }
+                }
+            }
+            if rows.len() % 2 == 1 {
+                let (l, t) = (rows[rows.len() - 1], tmp[rows.len() - 1]);
+                for c in 0..C {
+                    sum[0][c] += l * t[c];
+                }
+            }
+            for (c, xc) in x.iter_mut().enumerate() {
+                let s = sum[0][c] + sum[1][c] + dot(&block[1..], &xc[at + 1..end]);
+                xc[at] = (xc[at] - s) / block[0];
+            }
+        }
+    }
+}
+
+/// `x ← L⁻ᵀ L⁻¹ x` for `C` columns of a supernodal factor.
+fn supernodal_solve<'a, const C: usize>(
+    supernodes: impl DoubleEndedIterator<Item = Supernode<'a>> + Clone,
+    mut x: [&mut [f64]; C],
+    tmp: &mut Vec<[f64; C]>,
+) {
+    supernodes.clone().for_each(|s| s.forward(&mut x, tmp));
+    supernodes.rev().for_each(|s| s.backward(&mut x, tmp));
+}
+
+/// `y += a·x` (the compiler vectorises it).
+fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::sparse::SymbolicSparseColMatRef;
+
+    /// A `side²` grid's weighted Laplacian plus a mass diagonal, full
+    /// symmetric CSC, with uneven weights.
+    fn grid(side: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+        let n = side * side;
+        let (mut col_ptr, mut row_idx, mut values) = (vec![0], Vec::new(), Vec::new());
+        for j in 0..n {
+            let (r, c) = (j / side, j % side);
+            let mut column = Vec::new();
+            let mut diag = 1.0 + (j % 7) as f64;
+            let mut link = |i: usize| {
+                let (lo, hi) = (i.min(j), i.max(j));
+                let w = 50.0 + ((lo * 31 + hi * 17) % 13) as f64;
+                diag += w;
+                column.push((i, -w));
+            };
+            if r > 0 {
+                link(j - side);
+            }
+            if c > 0 {
+                link(j - 1);
+            }
+            if c + 1 < side {
+                link(j + 1);
+            }
+            if r + 1 < side {
+                link(j + side);
+            }
+            column.push((j, diag));
+            column.sort_by_key(|&(i, _)| i);
+            for (i, v) in column {
+                row_idx.push(i);
+                values.push(v);
+            }
+            col_ptr.push(row_idx.len());
+        }
+        (col_ptr, row_idx, values)
+    }
+
+    #[test]
+    fn the_three_column_solve_matches_faers_serially_and_on_two_threads() {
+        use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+        ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+        let mut kinds = (false, false);
+        // 200² is large enough for the parallel path (PARALLEL_MIN factor
+        // entries); 3² and 40² are simplicial, so faer's own solve.
+        for (side, supernodal) in [(3, None), (6, Some(true)), (40, None), (200, Some(true))] {
+            let (col_ptr, row_idx, values) = grid(side);
+            let n = side * side;
+            let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+            let a = SparseColMatRef::new(symbolic, &values);
+            let mut chol = supernodal.map_or_else(SparseCholesky::default, SparseCholesky::forced);
+            chol.factorize_llt(a, 3).expect("SPD");
+            match chol.symbolic.as_ref().expect("analysed").raw() {
+                SymbolicCholeskyRaw::Simplicial(_) => kinds.0 = true,
+                SymbolicCholeskyRaw::Supernodal(_) => kinds.1 = true,
+            }
+            let b: Vec<f64> = (0..3 * n)
+                .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+                .collect();
+            let (mut expected, mut serial, mut parallel) = (b.clone(), b.clone(), b.clone());
+            chol.solve_factored(&mut expected, 3).expect("solved");
+            chol.solve_factored_xyz(&mut serial, false).expect("solved");
+            chol.solve_factored_xyz(&mut parallel, true)
+                .expect("solved");
+            assert_eq!(serial, parallel, "{side}²: the same bits on two threads");
+            let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0);
+            for (e, g) in expected.iter().zip(&serial) {
+                assert!((e - g).abs() <= 1e-12 * scale, "{side}²: {e} vs {g}");
+            }
+            // And it is a solution: A x = b.
+            let mut ax = vec![0.0; 3 * n];
+            for c in 0..3 {
+                for j in 0..n {
+                    for p in col_ptr[j]..col_ptr[j + 1] {
+                        ax[c * n + row_idx[p]] += values[p] * serial[c * n + j];
+                    }
+                }
+            }
+            for (r, bb) in ax.iter().zip(&b) {
+                assert!(
+                    (r - bb).abs() <= 1e-9 * (1.0 + bb.abs()),
+                    "{side}²: {r} vs {bb}"
+                );
+            }
+        }
+        assert!(
+            kinds.0 && kinds.1,
+            "both factor kinds were exercised: {kinds:?}"
+        );
+    }
+
+    #[test]
+    fn the_three_column_solve_needs_a_factor_of_the_right_size() {
+        let mut chol = SparseCholesky::default();
+        assert!(chol.solve_factored_xyz(&mut [0.0; 3], false).is_err());
+        let (col_ptr, row_idx, values) = grid(3);
+        let symbolic = SymbolicSparseColMatRef::new_checked(9, 9, &col_ptr, None, &row_idx);
+        let mut chol = SparseCholesky::forced(true);
+        chol.factorize_llt(SparseColMatRef::new(symbolic, &values), 3)
+            .expect("SPD");
+        assert!(chol.solve_factored_xyz(&mut [0.0; 12], false).is_err());
+        assert!(chol.solve_factored_xyz(&mut [0.0; 27], false).is_ok());
     }
 }

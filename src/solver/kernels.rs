@@ -14,7 +14,10 @@ pub(crate) const CHUNK: usize = 4096;
 /// chunk costs more than it saves.
 pub const PARALLEL_MIN: usize = 32_768;
 
-fn parallel_pool(parallel: bool, len: usize) -> Option<&'static bevy::tasks::ComputeTaskPool> {
+pub(crate) fn parallel_pool(
+    parallel: bool,
+    len: usize,
+) -> Option<&'static bevy::tasks::ComputeTaskPool> {
     if parallel && len >= PARALLEL_MIN {
         bevy::tasks::ComputeTaskPool::try_get().filter(|p| p.thread_num() > 1)
     } else {
@@ -177,4 +180,22 @@ pub fn spring_terms(
             terms[e] = d * s;
         });
     });
+}
+
+/// `a·b` with four running sums (one sum would wait on each add's latency).
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(a, b)| a * b)
+        .sum();
+    for (a, b) in ca.zip(cb) {
+        for l in 0..4 {
+            sums[l] += a[l] * b[l];
+        }
+    }
+    sums.iter().sum::<f64>() + tail
 }

@@ -63,7 +63,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
-use super::kernels::spring_scales;
+use super::kernels::{dot, spring_scales};
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -222,6 +222,8 @@ pub struct ProjectiveWorkspace {
     contact_k: Vec<f64>,
     wanted_k: Vec<f64>,
     near: Vec<u64>,
+    /// This step's [`StepParams::parallel`].
+    parallel: bool,
     /// Factorisations so far (for tests: refactorised only when needed).
     factorizations: u32,
 }
@@ -448,12 +450,11 @@ impl ProjectiveWorkspace {
             self.rhs[m + f] = acc.y;
             self.rhs[2 * m + f] = acc.z;
         }
-        // x, y and z in one call: it traverses the factor once. Solving the
-        // three columns as parallel tasks was measured on the perf page (2
-        // threads) and gained nothing: 168 → 165 ms at 201², 296 → 304 ms at
-        // 256², since each column then reads the whole factor; and serially
-        // three single-column solves were 2× slower than this at 21²–101².
-        self.cholesky.solve_factored(&mut self.rhs, 3)
+        // x, y and z in one call: it traverses the factor once (serially
+        // three single-column solves were 2× slower at 21²–101²). On two
+        // threads x and y go to one and z to the other.
+        self.cholesky
+            .solve_factored_xyz(&mut self.rhs, self.parallel)
     }
 }
 
@@ -609,24 +610,6 @@ impl ProjectiveSolver {
     }
 }
 
-/// `a·b` with four running sums (one sum would wait on each add's latency).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut sums = [0.0f64; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(a, b)| a * b)
-        .sum();
-    for (a, b) in ca.zip(cb) {
-        for l in 0..4 {
-            sums[l] += a[l] * b[l];
-        }
-    }
-    sums.iter().sum::<f64>() + tail
-}
-
 /// Solves the `n×n` system in the top-left of the row-major `stride`-wide
 /// `a` for `b` in place, by Gaussian elimination with partial pivoting
 /// (hand-written: `n` is Anderson's window, a handful, where a dense
@@ -710,6 +693,7 @@ impl Method for ProjectiveSolver {
         let masses = model.masses();
         ws.d.resize(springs.len(), Vec3A::ZERO);
         ws.rhs.resize(3 * m, 0.0);
+        ws.parallel = params.parallel;
         ws.base.resize(m, DVec3::ZERO);
         ws.x_tilde.resize(n, Vec3A::ZERO);
         let ClothState {

@@ -107,8 +107,12 @@ fn time_method(
 
 /// Does `method` have loops that run in parallel chunks at this size?
 fn has_parallel_loops(method: &AnyMethod, model: &ClothModel) -> bool {
-    matches!(method, AnyMethod::Implicit(_) | AnyMethod::Symplectic(_))
-        && model.topology().springs().len() >= bevy_cloth::solver::PARALLEL_MIN
+    // Projective dynamics splits its three-column solve over two threads
+    // when the factor is supernodal (faer picks it for the larger cloths).
+    matches!(
+        method,
+        AnyMethod::Implicit(_) | AnyMethod::Symplectic(_) | AnyMethod::Projective(_)
+    ) && model.topology().springs().len() >= bevy_cloth::solver::PARALLEL_MIN
 }
 
 /// The scale sweep.
