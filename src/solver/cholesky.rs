@@ -11,7 +11,8 @@ use faer::sparse::linalg::cholesky::{
 use faer::{Conj, MatMut, Par, Side};
 
 use super::SolveError;
-use super::kernels::{dot, parallel_pool};
+use super::kernels::parallel_pool;
+use super::supernodal::{PartScratch, Plan, Structure, solve3};
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
 /// analysis is done once for a sparsity pattern and reused by every
@@ -28,9 +29,10 @@ pub struct SparseCholesky {
     /// [`solve_factored_xyz`](Self::solve_factored_xyz)'s permuted
     /// right-hand side and its per-supernode scratch.
     xyz: Vec<f64>,
-    xyz_tmp: Vec<[f64; 3]>,
-    xyz_tmp2: Vec<[f64; 2]>,
-    xyz_tmp1: Vec<[f64; 1]>,
+    /// Its split of a supernodal factor, made with the symbolic analysis,
+    /// and the scratch of each part.
+    plan: Option<Plan>,
+    scratch: [PartScratch; 3],
     /// Forces a simplicial (`Some(false)`) or supernodal (`Some(true)`)
     /// factor; faer chooses by the factorisation's flop count otherwise.
     supernodal: Option<bool>,
@@ -81,6 +83,17 @@ impl SparseCholesky {
                 sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
                 sym.solve_in_place_scratch::<f64>(columns, Par::Seq),
             ])));
+            self.plan = match sym.raw() {
+                SymbolicCholeskyRaw::Supernodal(s) => Some(Plan::new(&Structure {
+                    begin: s.supernode_begin(),
+                    end: s.supernode_end(),
+                    row_ptr: s.col_ptr_for_row_idx(),
+                    row_idx: s.row_idx(),
+                    val_ptr: s.col_ptr_for_val(),
+                    perm: sym.perm().map(|p| p.arrays()),
+                })),
+                SymbolicCholeskyRaw::Simplicial(_) => None,
+            };
             self.symbolic = Some(sym);
             self.columns = columns;
         }
@@ -213,12 +226,13 @@ impl SparseCholesky {
     /// [`factorize_llt`](Self::factorize_llt): the same result as
     /// [`solve_factored`](Self::solve_factored) with three columns.
     ///
-    /// Hand-written on faer's factor: faer's general solve runs one small
-    /// dense product per supernode through its matrix-multiply dispatch,
-    /// which for three columns costs more than the arithmetic. Here each
-    /// supernode's columns are contiguous `axpy`s and dot products over the
-    /// three columns, which the compiler vectorises (the CHANGELOG has the
-    /// perf page's pd rows before and after).
+    /// Hand-written on faer's factor (module `supernodal`): faer's general
+    /// solve runs one small dense product per supernode through its
+    /// matrix-multiply dispatch, which for three columns costs more than the
+    /// arithmetic. With `parallel` and a compute pool of two or more
+    /// threads, two independent subtrees of the elimination tree are solved
+    /// at once, with the same result to the bit (the CHANGELOG has the perf
+    /// page's pd rows before and after).
     pub fn solve_factored_xyz(
         &mut self,
         rhs: &mut [f64],
@@ -235,159 +249,32 @@ impl SparseCholesky {
             // faer's simplicial solve is as fast as a hand-written one.
             return self.solve_factored(rhs, 3);
         };
-        let x = &mut self.xyz;
-        x.clear();
-        match sym.perm() {
-            Some(perm) => {
-                for c in 0..3 {
-                    let column = &rhs[c * n..(c + 1) * n];
-                    x.extend(perm.arrays().0.iter().map(|&p| column[p]));
-                }
-            }
-            None => x.extend_from_slice(rhs),
-        }
-        let (x0, rest) = x.split_at_mut(n);
-        let (x1, x2) = rest.split_at_mut(n);
-        let supernodes = (0..s.n_supernodes()).map(|k| Supernode {
-            start: s.supernode_begin()[k],
-            size: s.supernode_end()[k] - s.supernode_begin()[k],
-            pattern: &s.row_idx()[s.col_ptr_for_row_idx()[k]..s.col_ptr_for_row_idx()[k + 1]],
-            values: &self.factor[s.col_ptr_for_val()[k]..s.col_ptr_for_val()[k + 1]],
-        });
-        match parallel_pool(parallel, self.factor.len()) {
-            // x and y on one thread, z on another (the columns are
-            // independent, and each is computed exactly as serially).
-            Some(pool) => {
-                let (tmp2, tmp1) = (&mut self.xyz_tmp2, &mut self.xyz_tmp1);
-                let first = supernodes.clone();
-                pool.scope(|scope| {
-                    scope.spawn(async move { supernodal_solve(first, [x0, x1], tmp2) });
-                    scope.spawn(async move { supernodal_solve(supernodes, [x2], tmp1) });
-                });
-            }
-            None => supernodal_solve(supernodes, [x0, x1, x2], &mut self.xyz_tmp),
-        }
-        let x = &self.xyz;
-        match sym.perm() {
-            Some(perm) => {
-                for c in 0..3 {
-                    let (column, solved) = (&mut rhs[c * n..(c + 1) * n], &x[c * n..]);
-                    for (r, &p) in column.iter_mut().zip(perm.arrays().1) {
-                        *r = solved[p];
-                    }
-                }
-            }
-            None => rhs.copy_from_slice(x),
-        }
+        let Some(plan) = self.plan.as_ref() else {
+            return Err(SolveError::Factorization);
+        };
+        let structure = Structure {
+            begin: s.supernode_begin(),
+            end: s.supernode_end(),
+            row_ptr: s.col_ptr_for_row_idx(),
+            row_idx: s.row_idx(),
+            val_ptr: s.col_ptr_for_val(),
+            perm: None,
+        };
+        let pool = parallel_pool(parallel && plan.splits(), self.factor.len());
+        solve3(
+            &structure,
+            &self.factor,
+            plan,
+            rhs,
+            &mut self.xyz,
+            &mut self.scratch,
+            pool,
+        );
         if rhs.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
             Err(SolveError::Factorization)
         }
-    }
-}
-
-/// One supernode of a supernodal factor: columns `start..start + size`, its
-/// rows below the diagonal block (`pattern`), and its values column-major
-/// (`size + pattern.len()` rows: the lower-triangular diagonal block, then
-/// the rows of `pattern`).
-#[derive(Clone, Copy)]
-struct Supernode<'a> {
-    start: usize,
-    size: usize,
-    pattern: &'a [usize],
-    values: &'a [f64],
-}
-
-impl Supernode<'_> {
-    /// Column `j`: its diagonal block part (from the diagonal down) and its
-    /// rows below the block.
-    fn column(&self, j: usize) -> (&[f64], &[f64]) {
-        let rows = self.size + self.pattern.len();
-        self.values[j * rows + j..(j + 1) * rows].split_at(self.size - j)
-    }
-
-    /// This supernode's part of `x ← L⁻¹ x` for `C` columns: the
-    /// triangular diagonal block, then `L_below · x_block` accumulated in
-    /// `tmp` (the columns interleaved) and subtracted from the rows of
-    /// `pattern`. Each column's arithmetic is the same whatever `C`.
-    fn forward<const C: usize>(&self, x: &mut [&mut [f64]; C], tmp: &mut Vec<[f64; C]>) {
-        tmp.clear();
-        tmp.resize(self.pattern.len(), [0.0; C]);
-        let end = self.start + self.size;
-        for j in 0..self.size {
-            let (block, rows) = self.column(j);
-            let at = self.start + j;
-            let xj: [f64; C] = core::array::from_fn(|c| {
-                let v = x[c][at] / block[0];
-                x[c][at] = v;
-                axpy(&mut x[c][at + 1..end], -v, &block[1..]);
-                v
-            });
-            for (t, &l) in tmp.iter_mut().zip(rows) {
-                for c in 0..C {
-                    t[c] += l * xj[c];
-                }
-            }
-        }
-        for (&i, t) in self.pattern.iter().zip(tmp.iter()) {
-            for c in 0..C {
-                x[c][i] -= t[c];
-            }
-        }
-    }
-
-    /// This supernode's part of `x ← L⁻ᵀ x` for `C` columns (supernodes
-    /// taken in reverse order): the rows of `pattern` gathered into `tmp`,
-    /// then the block's columns from the last, each a dot product with what
-    /// is solved (two running sums per column).
-    fn backward<const C: usize>(&self, x: &mut [&mut [f64]; C], tmp: &mut Vec<[f64; C]>) {
-        tmp.clear();
-        tmp.extend(
-            self.pattern
-                .iter()
-                .map(|&i| core::array::from_fn::<f64, C, _>(|c| x[c][i])),
-        );
-        let end = self.start + self.size;
-        for j in (0..self.size).rev() {
-            let (block, rows) = self.column(j);
-            let at = self.start + j;
-            let mut sum = [[0.0f64; C]; 2];
-            for (l, t) in rows.chunks_exact(2).zip(tmp.chunks_exact(2)) {
-                for h in 0..2 {
-                    for c in 0..C {
-                        sum[h][c] += l[h] * t[h][c];
-                    }
-                }
-            }
-            if rows.len() % 2 == 1 {
-                let (l, t) = (rows[rows.len() - 1], tmp[rows.len() - 1]);
-                for c in 0..C {
-                    sum[0][c] += l * t[c];
-                }
-            }
-            for (c, xc) in x.iter_mut().enumerate() {
-                let s = sum[0][c] + sum[1][c] + dot(&block[1..], &xc[at + 1..end]);
-                xc[at] = (xc[at] - s) / block[0];
-            }
-        }
-    }
-}
-
-/// `x ← L⁻ᵀ L⁻¹ x` for `C` columns of a supernodal factor.
-fn supernodal_solve<'a, const C: usize>(
-    supernodes: impl DoubleEndedIterator<Item = Supernode<'a>> + Clone,
-    mut x: [&mut [f64]; C],
-    tmp: &mut Vec<[f64; C]>,
-) {
-    supernodes.clone().for_each(|s| s.forward(&mut x, tmp));
-    supernodes.rev().for_each(|s| s.backward(&mut x, tmp));
-}
-
-/// `y += a·x` (the compiler vectorises it).
-fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
-    for (y, x) in y.iter_mut().zip(x) {
-        *y += a * x;
     }
 }
 
@@ -461,6 +348,10 @@ mod tests {
             chol.solve_factored_xyz(&mut parallel, true)
                 .expect("solved");
             assert_eq!(serial, parallel, "{side}²: the same bits on two threads");
+            if side == 200 {
+                let plan = chol.plan.as_ref().expect("supernodal");
+                assert!(plan.splits(), "a grid's tree has two subtrees to split");
+            }
             let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             assert!(scale > 0.0);
             for (e, g) in expected.iter().zip(&serial) {

@@ -41,6 +41,7 @@ pub mod method;
 pub mod params;
 pub mod pbd;
 pub mod projective;
+mod supernodal;
 pub mod symplectic;
 
 pub use kernels::PARALLEL_MIN;

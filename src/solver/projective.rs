@@ -22,7 +22,10 @@
 //! masses, the stiffness and `h` stay the same, so it is factorised once
 //! (faer's sparse Cholesky, AMD ordering, symbolic analysis kept) and only
 //! refactorised when one of them changes; each iteration is one forward and
-//! one back substitution with the three coordinates as an `n×3` block.
+//! one back substitution with the three coordinates as an `n×3` block
+//! (hand-written for three columns on the supernodal factor, and on two
+//! threads split along the elimination tree:
+//! [`SparseCholesky::solve_factored_xyz`](super::cholesky::SparseCholesky::solve_factored_xyz)).
 //! Pinned vertices carry no unknowns: their positions enter the right-hand
 //! side, so pins that follow their entity need no refactorisation.
 //!
