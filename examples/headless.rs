@@ -46,7 +46,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
 
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
-[--method implicit|chebyshev|pbd|symplectic|linear-cg|linear-direct|exact] [--n N] [--rows R] \
+[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|exact] [--n N] [--rows R] \
 [--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
 [--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--dump FILE.csv] [--compute-threads N]";
 

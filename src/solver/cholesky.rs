@@ -84,14 +84,9 @@ impl SparseCholesky {
                 sym.solve_in_place_scratch::<f64>(columns, Par::Seq),
             ])));
             self.plan = match sym.raw() {
-                SymbolicCholeskyRaw::Supernodal(s) => Some(Plan::new(&Structure {
-                    begin: s.supernode_begin(),
-                    end: s.supernode_end(),
-                    row_ptr: s.col_ptr_for_row_idx(),
-                    row_idx: s.row_idx(),
-                    val_ptr: s.col_ptr_for_val(),
-                    perm: sym.perm().map(|p| p.arrays()),
-                })),
+                SymbolicCholeskyRaw::Supernodal(s) => {
+                    Some(Plan::new(&Structure::of(s), sym.perm().map(|p| p.arrays())))
+                }
                 SymbolicCholeskyRaw::Simplicial(_) => None,
             };
             self.symbolic = Some(sym);
@@ -252,14 +247,7 @@ impl SparseCholesky {
         let Some(plan) = self.plan.as_ref() else {
             return Err(SolveError::Factorization);
         };
-        let structure = Structure {
-            begin: s.supernode_begin(),
-            end: s.supernode_end(),
-            row_ptr: s.col_ptr_for_row_idx(),
-            row_idx: s.row_idx(),
-            val_ptr: s.col_ptr_for_val(),
-            perm: None,
-        };
+        let structure = Structure::of(s);
         let pool = parallel_pool(parallel && plan.splits(), self.factor.len());
         solve3(
             &structure,

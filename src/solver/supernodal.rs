@@ -26,6 +26,8 @@
 //! 47 % each at 256² (3 subtrees); splitting at one node into two subtrees
 //! only, as first written, left 35 % and 55 % at 201².
 
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+
 use super::kernels::dot;
 
 /// One supernode, renumbered: columns `start..start + size`, its rows below
@@ -158,8 +160,19 @@ pub(super) struct Structure<'a> {
     pub row_ptr: &'a [usize],
     pub row_idx: &'a [usize],
     pub val_ptr: &'a [usize],
-    /// faer's fill-reducing permutation (forward, inverse), if any.
-    pub perm: Option<(&'a [usize], &'a [usize])>,
+}
+
+impl<'a> Structure<'a> {
+    /// The structure of faer's supernodal factor `s`.
+    pub fn of(s: &'a SymbolicSupernodalCholesky<usize>) -> Self {
+        Self {
+            begin: s.supernode_begin(),
+            end: s.supernode_end(),
+            row_ptr: s.col_ptr_for_row_idx(),
+            row_idx: s.row_idx(),
+            val_ptr: s.col_ptr_for_val(),
+        }
+    }
 }
 
 /// The renumbering and split of one symbolic factorisation (see the module
@@ -182,10 +195,11 @@ pub(super) struct Plan {
 }
 
 impl Plan {
-    /// The plan for `s`: the split with the most work in the smaller of
-    /// the two parts (`A` and `B` empty if the tree has no branch, or if
-    /// faer's supernodes are not in postorder, which the split relies on).
-    pub(super) fn new(s: &Structure<'_>) -> Self {
+    /// The plan for `s` under faer's fill-reducing permutation `perm`
+    /// (forward, inverse), if any: subtrees dealt to two bins as the module
+    /// docs say (both bins empty if faer's supernodes are not in postorder,
+    /// which the split relies on).
+    pub(super) fn new(s: &Structure<'_>, perm: Option<(&[usize], &[usize])>) -> Self {
         let (ns, n) = (s.begin.len(), s.end.last().copied().unwrap_or(0));
         let mut supernode_of = vec![0; n];
         for k in 0..ns {
@@ -283,7 +297,7 @@ impl Plan {
         for (new, &old) in old_of_new.iter().enumerate() {
             new_of_old[old] = new;
         }
-        let (gather, scatter) = match s.perm {
+        let (gather, scatter) = match perm {
             Some((fwd, inv)) => (
                 old_of_new.iter().map(|&o| fwd[o]).collect(),
                 inv.iter().map(|&o| new_of_old[o]).collect(),
