@@ -216,6 +216,8 @@ pub(crate) fn project_running_cloths(
                 return;
             }
             let cloth = &mut *cloth;
+            // The guard checks the projected state again in `SyncOut`.
+            cloth.measured = None;
             let contacts = project(&cloth.model, &mut cloth.state, params.particle_radius, dt);
             stats.contacts += contacts as u32;
         });

@@ -71,6 +71,12 @@ pub struct Cloth {
     /// model too.
     #[reflect(ignore)]
     pub(crate) attached: Vec<u32>,
+    /// What the guard measured on the state after this fixed step's
+    /// method step, for the guard's second check and the stats in
+    /// `SyncOut`; dropped by anything that changes the state in between
+    /// (collision, [`Cloth::state_mut`]).
+    #[reflect(ignore)]
+    pub(crate) measured: Option<crate::solver::Measured>,
 }
 
 /// Places a cloth's rest shape at its entity's global transform as soon as the
@@ -125,6 +131,7 @@ impl Cloth {
     /// its length is caught by the solvers as a typed error.
     #[inline]
     pub fn state_mut(&mut self) -> &mut ClothState {
+        self.measured = None;
         &mut self.state
     }
 
@@ -159,6 +166,7 @@ impl Cloth {
     pub(crate) fn place(&mut self, affine: &bevy::math::Affine3A) {
         self.state = ClothState::at_rest(&self.model, affine);
         self.last_good.copy_from(&self.state);
+        self.measured = None;
         // Held vertices are taken again, from rest, at the next step.
         self.attached.clear();
         self.initialized = true;

@@ -292,22 +292,27 @@ fn guard_and_measure(
                 return;
             }
             let mut params = params.step_params(dt);
-            if params.stiffness.validate().is_err() {
-                // A method that ignores stiffness (PBD) runs with any; its
-                // energy then has no spring term rather than a NaN.
-                params.stiffness = solver::SpringStiffness::uniform(0.0);
-            }
-            match guard
-                .bounds
-                .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
-            {
+            // What the step's own guard check measured, if nothing has
+            // touched the state since (collision and `Cloth::state_mut` drop
+            // it): the same check on the same state, so it is not done twice.
+            let cached = cloth.measured.take();
+            let result = match cached {
+                Some(measured) if params.stiffness.validate().is_ok() => Ok(measured),
+                _ => {
+                    if params.stiffness.validate().is_err() {
+                        // A method that ignores stiffness (PBD) runs with any;
+                        // its energy then has no spring term rather than a NaN.
+                        params.stiffness = solver::SpringStiffness::uniform(0.0);
+                    }
+                    guard
+                        .bounds
+                        .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
+                }
+            };
+            match result {
                 Ok(measured) => {
-                    stats.max_stretch = measured.max_stretch.unwrap_or_else(|| {
-                        solver::max_stretch(&cloth.model, &cloth.state.positions)
-                    });
-                    stats.energy = measured
-                        .energy
-                        .unwrap_or_else(|| solver::energy(&cloth.model, &cloth.state, &params));
+                    stats.max_stretch = measured.max_stretch;
+                    stats.energy = measured.energy;
                 }
                 Err(reason) => {
                     cloth.state.copy_from(&cloth.last_good);

@@ -254,6 +254,7 @@ fn step_cloths<M: ClothMethod>(
             let model = &cloth.model;
             let method = &*method;
             let start = Instant::now();
+            cloth.measured = None;
             let result = guarded_step(
                 &guard.bounds,
                 guard.policy,
@@ -299,6 +300,7 @@ fn step_cloths<M: ClothMethod>(
                         }
                     }
                     stats.substeps = done.substeps;
+                    cloth.measured = Some(done.measured);
                     if let Some(reason) = done.retried_because {
                         stats.retried_steps += 1;
                         cloth.event = Some((

@@ -20,7 +20,7 @@
 use bevy::reflect::Reflect;
 
 use super::ParamError;
-use super::{StepError, StepParams, StepReport, energy, max_stretch};
+use super::{Measured, StepError, StepParams, StepReport, max_stretch, measure};
 use crate::model::{ClothModel, ClothState};
 
 /// Why the guard rejected a step.
@@ -49,7 +49,7 @@ pub struct GuardBounds {
     /// A scene whose physics stretches springs further than this (huge loads
     /// on soft springs) needs a larger bound.
     pub max_stretch: Option<f32>,
-    /// Largest allowed total energy (see [`energy`]); `None`
+    /// Largest allowed total energy (see [`energy`](super::energy)); `None`
     /// (the default) checks none. It depends on the scene, so only its
     /// author can set it.
     pub max_energy: Option<f64>,
@@ -90,8 +90,9 @@ impl GuardBounds {
     /// bounds that are set. A stretch beyond the bound passes if it is no
     /// larger than before the step: the cloth is recovering from something
     /// done to it (a pin teleported far away), not blowing up. Costs one pass
-    /// over the vertices, plus one over the springs per bound that is set;
-    /// returns what it measured, so a caller need not measure it again.
+    /// over the vertices and one over the springs ([`measure`]), whatever
+    /// bounds are set; returns what it measured (the largest stretch and
+    /// the energy), so a caller need not measure it again.
     pub fn check(
         &self,
         model: &ClothModel,
@@ -99,44 +100,26 @@ impl GuardBounds {
         before: &ClothState,
         params: &StepParams,
     ) -> Result<Measured, DivergenceReason> {
-        let mut measured = Measured::default();
-        if !state.is_finite() {
-            return Err(DivergenceReason::NonFinite);
-        }
+        let measured = measure(model, state, params).ok_or(DivergenceReason::NonFinite)?;
         if let Some(bound) = self.max_stretch {
-            let stretch = max_stretch(model, &state.positions);
-            // NaN cannot happen on finite positions, but fail closed.
+            let stretch = measured.max_stretch;
             // Fails if it grew while beyond the bound (`before` passed the
             // guard, so it is finite).
-            if stretch.is_nan()
-                || (stretch > bound
-                    && max_stretch(model, &before.positions)
-                        .partial_cmp(&stretch)
-                        .is_some_and(|o| o.is_lt()))
+            if stretch > bound
+                && max_stretch(model, &before.positions)
+                    .partial_cmp(&stretch)
+                    .is_some_and(|o| o.is_lt())
             {
                 return Err(DivergenceReason::Stretch);
             }
-            measured.max_stretch = Some(stretch);
         }
-        if let Some(bound) = self.max_energy {
-            let e = energy(model, state, params);
-            if e.is_nan() || e > bound {
-                return Err(DivergenceReason::Energy);
-            }
-            measured.energy = Some(e);
+        if let Some(bound) = self.max_energy
+            && (measured.energy.is_nan() || measured.energy > bound)
+        {
+            return Err(DivergenceReason::Energy);
         }
         Ok(measured)
     }
-}
-
-/// What [`GuardBounds::check`] measured on the way: the largest stretch and
-/// the energy, for each bound that is set.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Measured {
-    /// Largest spring stretch, if the stretch bound is set.
-    pub max_stretch: Option<f32>,
-    /// Total energy, if the energy bound is set.
-    pub energy: Option<f64>,
 }
 
 /// What to do with a step that fails the guard.
@@ -168,6 +151,8 @@ pub struct GuardedStep {
     pub substeps: u32,
     /// Why the full step failed, when it was retried.
     pub retried_because: Option<DivergenceReason>,
+    /// What the guard's check measured on the final state.
+    pub measured: Measured,
 }
 
 /// Why [`guarded_step`] gave up.
@@ -234,7 +219,7 @@ where
     let start = memory.halvings.min(max_halvings);
     backup.copy_from(state);
     let first = match try_level(bounds, model, state, backup, params, start, &mut step) {
-        Ok(report) => {
+        Ok((report, measured)) => {
             memory.halvings = start;
             memory.calm_steps += 1;
             if memory.calm_steps >= RELAX_AFTER && memory.halvings > 0 {
@@ -245,6 +230,7 @@ where
                 report,
                 substeps: 1 << start,
                 retried_because: None,
+                measured,
             });
         }
         Err(Failure::Refused(e)) => {
@@ -255,13 +241,16 @@ where
     };
     for h in start + 1..=max_halvings {
         state.copy_from(backup);
-        if let Ok(report) = try_level(bounds, model, state, backup, params, h, &mut step) {
+        if let Ok((report, measured)) =
+            try_level(bounds, model, state, backup, params, h, &mut step)
+        {
             memory.halvings = (h + 1).min(max_halvings);
             memory.calm_steps = 0;
             return Ok(GuardedStep {
                 report,
                 substeps: 1 << h,
                 retried_because: Some(first),
+                measured,
             });
         }
     }
@@ -281,7 +270,7 @@ fn try_level<F>(
     params: &StepParams,
     halvings: u8,
     step: &mut F,
-) -> Result<StepReport, Failure>
+) -> Result<(StepReport, Measured), Failure>
 where
     F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
 {
@@ -306,22 +295,23 @@ fn try_substeps<F>(
     params: &StepParams,
     substeps: u32,
     step: &mut F,
-) -> Result<StepReport, Failure>
+) -> Result<(StepReport, Measured), Failure>
 where
     F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
 {
-    let mut last = StepReport::default();
+    let mut last = (StepReport::default(), Measured::default());
     for _ in 0..substeps {
-        last = match step(state, params) {
+        let report = match step(state, params) {
             Ok(report) => report,
             Err(StepError::Solve(_)) => {
                 return Err(Failure::Diverged(DivergenceReason::SolveFailed));
             }
             Err(e) => return Err(Failure::Refused(e)),
         };
-        bounds
+        let measured = bounds
             .check(model, state, before, params)
             .map_err(Failure::Diverged)?;
+        last = (report, measured);
     }
     Ok(last)
 }
@@ -330,8 +320,8 @@ where
 mod tests {
     use super::*;
     use crate::model::ClothBuilder;
-    use crate::solver::Method;
     use crate::solver::symplectic::{SymplecticSolver, SymplecticWorkspace};
+    use crate::solver::{Method, energy};
     use bevy::math::Affine3A;
 
     fn lab() -> (ClothModel, ClothState) {
@@ -462,9 +452,12 @@ mod tests {
             tight.check(&model, &state, &state, &params),
             Err(DivergenceReason::Energy)
         );
-        assert_eq!(
-            GuardBounds::FINITE_ONLY.check(&model, &state, &state, &params),
-            Ok(Measured::default())
-        );
+        // Without bounds only non-finite values fail, and the measures come
+        // back all the same.
+        let measured = GuardBounds::FINITE_ONLY
+            .check(&model, &state, &state, &params)
+            .unwrap();
+        assert_eq!(measured.energy, e);
+        assert_eq!(measured.max_stretch, max_stretch(&model, &state.positions));
     }
 }

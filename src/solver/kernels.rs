@@ -100,12 +100,10 @@ pub(crate) fn for_chunks2<A: Send, B: Send, R: Send + Copy + Default>(
 /// `d·k(1 − L/l)` (`α = k`, `β = kL`), and PBD's half correction is
 /// `d·L/(2l)` (`α = 0`, `β = −L/2`). `e` counts from 0 within `springs`.
 ///
-/// Four springs at a time: their four `d` are transposed in registers
-/// (glam's `Mat4`) into `x`, `y` and `z` lanes, so the squared lengths, the
-/// square roots and the divisions are one packed SIMD instruction each for
-/// the four (glam's `Vec4`: SSE2 on x86-64, NEON on aarch64). Per spring,
-/// a horizontal dot product and a scalar `sqrtss` + `divss` bounded the
-/// loop before; on the lab cloth this halves the spring pass (see
+/// Four springs at a time (see [`spring_groups`]), so the square roots and
+/// the divisions are one packed SIMD instruction each for the four. Per
+/// spring, a horizontal dot product and a scalar `sqrtss` + `divss` bounded
+/// the loop before; on the lab cloth this halves the spring pass (see
 /// `docs/perf.md`).
 #[inline]
 pub(crate) fn spring_scales(
@@ -114,9 +112,42 @@ pub(crate) fn spring_scales(
     x: &[Vec3A],
     mut emit: impl FnMut(usize, Vec3A, f32),
 ) {
-    let groups = springs.chunks_exact(4).zip(coeffs.chunks_exact(4));
+    spring_groups(springs, x, |e, d, l2| {
+        let c = &coeffs[e..e + 4];
+        let alpha = Vec4::new(c[0][0], c[1][0], c[2][0], c[3][0]);
+        let beta = Vec4::new(c[0][1], c[1][1], c[2][1], c[3][1]);
+        let scale = Vec4::select(l2.cmpgt(Vec4::ZERO), alpha - beta / l2.sqrt(), Vec4::ZERO);
+        emit(e, d[0], scale.x);
+        emit(e + 1, d[1], scale.y);
+        emit(e + 2, d[2], scale.z);
+        emit(e + 3, d[3], scale.w);
+    });
     let done = springs.len() / 4 * 4;
-    for (g, (s, c)) in groups.enumerate() {
+    for (j, (s, [alpha, beta])) in springs[done..].iter().zip(&coeffs[done..]).enumerate() {
+        let d = x[s.a as usize] - x[s.b as usize];
+        let l2 = d.length_squared();
+        let scale = if l2 > 0.0 {
+            alpha - beta / l2.sqrt()
+        } else {
+            0.0
+        };
+        emit(done + j, d, scale);
+    }
+}
+
+/// Calls `group(e, d, l²)` for the springs `e .. e + 4` of `springs`, four
+/// at a time (the last `len % 4` springs are left to the caller, from
+/// `len / 4 * 4`): their four `d = x_a − x_b` and, packed, their squared
+/// lengths. The four `d` are transposed in registers (glam's `Mat4`) into
+/// `x`, `y` and `z` lanes, so what follows on the lengths is packed SIMD
+/// (glam's `Vec4`: SSE2 on x86-64, NEON on aarch64).
+#[inline(always)]
+pub(crate) fn spring_groups(
+    springs: &[Spring],
+    x: &[Vec3A],
+    mut group: impl FnMut(usize, &[Vec3A; 4], Vec4),
+) {
+    for (g, s) in springs.chunks_exact(4).enumerate() {
         let d = [
             x[s[0].a as usize] - x[s[0].b as usize],
             x[s[1].a as usize] - x[s[1].b as usize],
@@ -132,23 +163,7 @@ pub(crate) fn spring_scales(
         .transpose();
         let l2 =
             lanes.x_axis * lanes.x_axis + lanes.y_axis * lanes.y_axis + lanes.z_axis * lanes.z_axis;
-        let alpha = Vec4::new(c[0][0], c[1][0], c[2][0], c[3][0]);
-        let beta = Vec4::new(c[0][1], c[1][1], c[2][1], c[3][1]);
-        let scale = Vec4::select(l2.cmpgt(Vec4::ZERO), alpha - beta / l2.sqrt(), Vec4::ZERO);
-        emit(4 * g, d[0], scale.x);
-        emit(4 * g + 1, d[1], scale.y);
-        emit(4 * g + 2, d[2], scale.z);
-        emit(4 * g + 3, d[3], scale.w);
-    }
-    for (j, (s, [alpha, beta])) in springs[done..].iter().zip(&coeffs[done..]).enumerate() {
-        let d = x[s.a as usize] - x[s.b as usize];
-        let l2 = d.length_squared();
-        let scale = if l2 > 0.0 {
-            alpha - beta / l2.sqrt()
-        } else {
-            0.0
-        };
-        emit(done + j, d, scale);
+        group(4 * g, &d, l2);
     }
 }
 

@@ -26,7 +26,7 @@
 //!
 //! Shared parts: [`params`] (what a step takes and returns), [`kernels`]
 //! (the packed-SIMD spring pass and the chunked parallel loops),
-//! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`],
+//! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`], [`measure`],
 //! [`step_error`], [`ConvergenceSums`]) and [`cholesky`] (the sparse factorisation the direct
 //! methods share).
 
@@ -45,7 +45,9 @@ mod supernodal;
 pub mod symplectic;
 
 pub use kernels::PARALLEL_MIN;
-pub use measures::{ConvergenceSums, energy, gradient, max_stretch, objective, step_error};
+pub use measures::{
+    ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective, step_error,
+};
 pub use method::{LAB_ITERATIONS, LAB_RHO, Method};
 pub(crate) use params::check_state;
 pub use params::{

@@ -271,3 +271,46 @@ fn max_stretch_and_energy_measure_the_state() {
     assert!((max_stretch(&model, &state.positions) - 0.1).abs() < 1e-5);
     assert!(energy(&model, &state, &params) > 0.0);
 }
+
+#[test]
+fn measure_finds_the_stretch_and_energy_of_the_f64_formulas_in_one_pass() {
+    let (model, state) = swinging(40);
+    let params = StepParams::LAB;
+    let measured = measure(&model, &state, &params).unwrap();
+    // The same quantities summed spring by spring and vertex by vertex in f64.
+    let k = params.stiffness.as_array();
+    let x = &state.positions;
+    let (mut worst, mut springs) = (f64::NEG_INFINITY, 0.0f64);
+    for s in model.topology().springs() {
+        let l = (x[s.a as usize].as_dvec3() - x[s.b as usize].as_dvec3()).length();
+        let rest = f64::from(s.rest_length);
+        worst = worst.max((l - rest) / rest);
+        springs += 0.5 * f64::from(k[s.kind as usize]) * (l - rest) * (l - rest);
+    }
+    let g = params.gravity.as_dvec3();
+    let vertices: f64 = model
+        .masses()
+        .iter()
+        .zip(x.iter().zip(&state.velocities))
+        .map(|(&m, (x, v))| {
+            let m = f64::from(m);
+            0.5 * m * v.as_dvec3().length_squared() - m * g.dot(x.as_dvec3())
+        })
+        .sum();
+    assert!(worst > 0.01, "the swinging cloth is stretched: {worst}");
+    assert!((f64::from(measured.max_stretch) - worst).abs() < 1e-5 * (1.0 + worst));
+    let exact = springs + vertices;
+    assert!(
+        (measured.energy - exact).abs() < 1e-5 * (springs.abs() + vertices.abs()),
+        "{} against {exact}",
+        measured.energy
+    );
+    // The separate functions are the same measures, bit for bit.
+    assert_eq!(measured.max_stretch, max_stretch(&model, x));
+    assert_eq!(measured.energy, energy(&model, &state, &params));
+    // A non-finite velocity (not only a position) makes it `None`.
+    let mut bad = state.clone();
+    bad.velocities[7].y = f32::INFINITY;
+    assert_eq!(measure(&model, &bad, &params), None);
+    assert!(energy(&model, &bad, &params).is_nan());
+}

@@ -442,3 +442,35 @@ fn projective_dynamics_refactorises_when_k_changes_live_and_follows_moving_pins(
     assert!(s.is_running(), "{:?}", s.status);
     assert!(s.max_stretch < soft / 5.0, "{} vs {soft}", s.max_stretch);
 }
+
+/// The stats are measured once per step (the guard's check after the method
+/// step is reused by the check after collision) but always describe the
+/// state the frame ends with, after collision moved it.
+#[test]
+fn stats_measure_the_state_after_collision() {
+    for collider in [
+        SphereCollider::new(2.7),
+        SphereCollider::penalty(2.7, 5000.0),
+    ] {
+        let mut app = app();
+        let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+        app.world_mut()
+            .spawn((collider, Transform::from_xyz(0.0, -3.0, 4.0)));
+        let mut touched = 0;
+        for _ in 0..60 {
+            run_steps(&mut app, 1);
+            let s = stats(&app, cloth);
+            touched = touched.max(s.contacts);
+            let c = app.world().get::<Cloth>(cloth).unwrap();
+            let params = app
+                .world()
+                .get::<ClothParams>(cloth)
+                .unwrap()
+                .step_params(DT);
+            let measured = bevy_cloth::solver::measure(c.model(), c.state(), &params).unwrap();
+            assert_eq!(s.max_stretch, measured.max_stretch);
+            assert_eq!(s.energy, measured.energy);
+        }
+        assert!(touched > 10, "{collider:?}: only {touched} contacts");
+    }
+}
