@@ -151,8 +151,9 @@
 //!
 //! ## Performance
 //! - Every iteration of the spring-based methods is two passes: one over
-//!   springs, four at a time in packed SIMD (`solver::spring_scales`), which
-//!   computes each spring's term once; one over vertices, which gathers its
+//!   springs in packed SIMD, which computes each spring's term once (four
+//!   springs at a time in glam's `Vec4`, or eight with AVX2, chosen at run
+//!   time and giving the same bits: [`solver::simd`]); one over vertices, which gathers its
 //!   springs' terms ([`model::Adjacency::by_side`], or fixed-length
 //!   [`model::Adjacency::padded`] rows: no scattered writes, no
 //!   atomics) and updates the vertex in the same loop. No allocation or

@@ -216,6 +216,8 @@ impl ClothParams {
             damping: self.damping,
             gravity: self.gravity,
             parallel: self.parallel,
+            // The fastest the CPU has: every level gives the same bits.
+            simd: crate::solver::Simd::Auto,
         }
     }
 

@@ -204,7 +204,7 @@ impl Method for ImplicitSolver {
         ws.update_norms.clear();
         for k in 0..config.iterations {
             spring_terms(
-                params.parallel,
+                params,
                 model,
                 x,
                 &ws.coeffs,
@@ -264,7 +264,7 @@ impl Method for ImplicitSolver {
 
         // Residual at the final iterate: the gradient over free vertices.
         spring_terms(
-            params.parallel,
+            params,
             model,
             x,
             &ws.coeffs,

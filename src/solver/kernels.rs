@@ -4,6 +4,7 @@
 use bevy::math::{Mat4, Vec3A, Vec4};
 
 use super::SpringStiffness;
+use super::simd::spring_products;
 use crate::model::{ClothModel, Spring};
 
 /// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
@@ -179,21 +180,27 @@ pub fn stiffness_coeffs(model: &ClothModel, stiffness: &SpringStiffness, out: &m
 }
 
 /// Fills `terms[e]` with each spring's gradient term `k(1 − L/l)(x_a − x_b)`
-/// at positions `x`, in parallel chunks for large cloths. `coeffs` is from
-/// [`stiffness_coeffs`].
+/// at positions `x`, in parallel chunks for large cloths
+/// ([`StepParams::parallel`](super::StepParams::parallel)), at the SIMD
+/// level [`StepParams::simd`](super::StepParams::simd) chooses (the same
+/// bits at every level). `coeffs` is from [`stiffness_coeffs`].
 pub fn spring_terms(
-    parallel: bool,
+    params: &super::StepParams,
     model: &ClothModel,
     x: &[Vec3A],
     coeffs: &[[f32; 2]],
     terms: &mut [Vec3A],
 ) {
     let springs = model.topology().springs();
-    for_chunks(parallel, terms, |start, terms| {
+    for_chunks(params.parallel, terms, |start, terms| {
         let end = start + terms.len();
-        spring_scales(&springs[start..end], &coeffs[start..end], x, |e, d, s| {
-            terms[e] = d * s;
-        });
+        spring_products(
+            params.simd,
+            &springs[start..end],
+            &coeffs[start..end],
+            x,
+            terms,
+        );
     });
 }
 

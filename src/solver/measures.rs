@@ -22,7 +22,7 @@ pub fn gradient(
 ) {
     let mut coeffs = Vec::new();
     stiffness_coeffs(model, &params.stiffness, &mut coeffs);
-    spring_terms(params.parallel, model, x, &coeffs, terms);
+    spring_terms(params, model, x, &coeffs, terms);
     let terms = &*terms;
     let dt = params.dt as f32;
     let inv_dt2 = 1.0 / (dt * dt);

@@ -25,7 +25,8 @@
 //! halved time steps when it fails.
 //!
 //! Shared parts: [`params`] (what a step takes and returns), [`kernels`]
-//! (the packed-SIMD spring pass and the chunked parallel loops),
+//! (the packed-SIMD spring pass and the chunked parallel loops), [`simd`]
+//! (the spring pass at the CPU's widest SIMD, chosen at run time),
 //! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`], [`measure`],
 //! [`step_error`], [`ConvergenceSums`]) and [`cholesky`] (the sparse factorisation the direct
 //! methods share).
@@ -41,6 +42,7 @@ pub mod method;
 pub mod params;
 pub mod pbd;
 pub mod projective;
+pub mod simd;
 mod supernodal;
 pub mod symplectic;
 
@@ -54,6 +56,7 @@ pub use params::{
     CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,
     StepReport,
 };
+pub use simd::Simd;
 
 #[cfg(test)]
 mod tests;

@@ -80,6 +80,10 @@ pub struct StepParams {
     /// Results are bitwise the same either way; this only trades speed for
     /// threads (default `true`).
     pub parallel: bool,
+    /// The SIMD instruction set of the spring pass (default
+    /// [`Simd::Auto`](super::Simd::Auto): the fastest this CPU has). Every
+    /// choice gives the same bits; this only trades speed.
+    pub simd: super::Simd,
 }
 
 impl StepParams {
@@ -91,6 +95,7 @@ impl StepParams {
         damping: 0.99,
         gravity: Vec3::new(0.0, -9.8, 0.0),
         parallel: true,
+        simd: super::Simd::Auto,
     };
 
     /// Checks every parameter; a solver calls this before it touches state.

@@ -67,6 +67,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::{dot, spring_scales};
+use super::simd::{Simd, spring_products};
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -191,7 +192,7 @@ pub struct ProjectiveWorkspace {
     row_idx: Vec<usize>,
     values: Vec<f64>,
     cholesky: SparseCholesky,
-    /// Per spring `[0, −L]`: `spring_scales` gives `L/l`.
+    /// Per spring `[0, −L]`: `spring_products` gives `L/l·d`.
     coeffs: Vec<[f32; 2]>,
     /// Per spring `k` (in `f64`).
     k: Vec<f64>,
@@ -227,6 +228,8 @@ pub struct ProjectiveWorkspace {
     near: Vec<u64>,
     /// This step's [`StepParams::parallel`].
     parallel: bool,
+    /// This step's [`StepParams::simd`].
+    simd: Simd,
     /// Factorisations so far (for tests: refactorised only when needed).
     factorizations: u32,
 }
@@ -387,7 +390,7 @@ impl ProjectiveWorkspace {
     ) -> Result<(), SolveError> {
         let springs = model.topology().springs();
         let d = &mut self.d;
-        spring_scales(springs, &self.coeffs, x, |e, dx, scale| d[e] = dx * scale);
+        spring_products(self.simd, springs, &self.coeffs, x, d);
         self.global(model, x, spheres)
     }
 
@@ -697,6 +700,7 @@ impl Method for ProjectiveSolver {
         ws.d.resize(springs.len(), Vec3A::ZERO);
         ws.rhs.resize(3 * m, 0.0);
         ws.parallel = params.parallel;
+        ws.simd = params.simd;
         ws.base.resize(m, DVec3::ZERO);
         ws.x_tilde.resize(n, Vec3A::ZERO);
         let ClothState {
@@ -776,7 +780,7 @@ impl Method for ProjectiveSolver {
         // Residual: the objective's gradient over free vertices (the
         // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e).
         let d = &mut ws.d;
-        spring_scales(springs, &ws.coeffs, x, |e, dx, scale| d[e] = dx * scale);
+        spring_products(ws.simd, springs, &ws.coeffs, x, d);
         let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();

@@ -50,13 +50,7 @@ impl Method for SymplecticSolver {
             .resize(model.topology().springs().len(), Vec3A::ZERO);
         // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
         stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-        spring_terms(
-            params.parallel,
-            model,
-            &state.positions,
-            &ws.coeffs,
-            &mut ws.terms,
-        );
+        spring_terms(params, model, &state.positions, &ws.coeffs, &mut ws.terms);
         let h = params.dt as f32;
         let gravity = Vec3A::from(params.gravity);
         let adjacency = model.topology().adjacency();

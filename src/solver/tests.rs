@@ -314,3 +314,104 @@ fn measure_finds_the_stretch_and_energy_of_the_f64_formulas_in_one_pass() {
     assert_eq!(measure(&model, &bad, &params), None);
     assert!(energy(&model, &bad, &params).is_nan());
 }
+
+#[test]
+fn spring_products_give_the_same_bits_at_every_simd_level() {
+    let (model, mut state) = swinging(5);
+    let mut seed = 7;
+    for x in &mut state.positions {
+        *x += 0.05 * noise(&mut seed);
+    }
+    // A spring of zero length: its direction is undefined, its product 0.
+    let springs = model.topology().springs();
+    let s = springs[springs.len() - 3];
+    state.positions[s.a as usize] = state.positions[s.b as usize];
+    // Every spring count from 0 to past a 16-lane group, and the whole cloth
+    // (1240 springs: 77 full 16-lane groups and a tail).
+    let coeffs: Vec<[f32; 2]> = (0..springs.len())
+        .map(|e| [1000.0 + e as f32, 3.0 * e as f32 - 700.0])
+        .collect();
+    let levels = Simd::supported();
+    assert_eq!(levels[0], Simd::Baseline);
+    assert!(levels.contains(&Simd::Auto.resolve()));
+    eprintln!("levels run: {levels:?}");
+    for len in (0..40).chain([springs.len() - 16, springs.len()]) {
+        let start = springs.len() - len;
+        let run = |simd| {
+            let mut out = vec![Vec3A::splat(f32::NAN); len];
+            simd::spring_products(
+                simd,
+                &springs[start..],
+                &coeffs[start..],
+                &state.positions,
+                &mut out,
+            );
+            out.iter()
+                .map(|v| v.to_array().map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        let baseline = run(Simd::Baseline);
+        // The baseline is the formula: d·(α − β/l), 0 for a zero length.
+        for (e, (spring, [alpha, beta])) in
+            springs[start..].iter().zip(&coeffs[start..]).enumerate()
+        {
+            let d = state.positions[spring.a as usize] - state.positions[spring.b as usize];
+            let l = d.length();
+            let expected = if l > 0.0 {
+                d * (alpha - beta / l)
+            } else {
+                Vec3A::ZERO
+            };
+            let got = Vec3A::from_array(baseline[e].map(f32::from_bits));
+            assert!(
+                (got - expected).length() <= 1e-5 * expected.length().max(1.0),
+                "spring {e}: {got} against {expected}"
+            );
+        }
+        for &level in &levels {
+            let got = run(level);
+            let first = got.iter().zip(&baseline).position(|(a, b)| a != b);
+            assert!(
+                first.is_none(),
+                "{level:?} with {len} springs: spring {first:?} differs"
+            );
+        }
+    }
+}
+
+#[test]
+fn every_method_steps_to_the_same_bits_at_every_simd_level() {
+    let (model, start) = swinging(5);
+    for preset in crate::methods::PRESETS {
+        let run = |simd| {
+            let params = StepParams {
+                simd,
+                ..StepParams::LAB
+            };
+            let mut state = start.clone();
+            let mut ws = crate::methods::AnyWorkspace::default();
+            for _ in 0..3 {
+                preset
+                    .method
+                    .step(&model, &mut state, &params, &[], &mut ws)
+                    .unwrap();
+            }
+            state
+                .positions
+                .iter()
+                .chain(&state.velocities)
+                .map(|v| v.to_array().map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        let baseline = run(Simd::Baseline);
+        for level in Simd::supported().into_iter().chain([Simd::Auto]) {
+            let got = run(level);
+            let first = got.iter().zip(&baseline).position(|(a, b)| a != b);
+            assert!(
+                first.is_none(),
+                "{} at {level:?}: {first:?} differs",
+                preset.name()
+            );
+        }
+    }
+}

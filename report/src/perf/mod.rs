@@ -32,7 +32,8 @@ mod sweep;
 pub use machine::{Limits, limits, work_per_iteration};
 pub use page::run;
 pub use sweep::{
-    Case, CgParts, cg_parts, many_cloths, scale_model, sweep, sweep_methods, warm_state,
+    Case, CgParts, SimdRow, cg_parts, many_cloths, scale_model, simd_levels, sweep, sweep_methods,
+    warm_state,
 };
 
 use std::path::PathBuf;

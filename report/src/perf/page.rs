@@ -7,7 +7,6 @@ use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
 use plotters::prelude::*;
 
 use super::machine::last_level_cache;
-use super::sweep::spring_pass_share;
 use super::*;
 
 /// Runs the page and writes its files. Returns the markdown.
@@ -34,8 +33,8 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     progress("limits");
     let limits = limits(config);
     let cases = sweep(config, &progress);
-    progress("spring pass at 21²");
-    let split = spring_pass_share(config);
+    progress("SIMD levels");
+    let levels = simd_levels(config);
     progress("many cloths");
     let one_app = many_cloths(config, 1);
     let many_app = many_cloths(config, config.many);
@@ -50,10 +49,13 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         w,
         "Written by `cargo run --release -p bevy_cloth_report -- --perf` ({}). Machine: {}, {} logical cores; \
          compute pool for the parallel columns: {threads} threads. Build: release, baseline \
-         x86-64 target (SSE2, 4-lane packed `f32`).",
+         x86-64 target (SSE2, 4-lane packed `f32`); the spring pass runs at the fastest SIMD \
+         level the CPU has, chosen at run time: here {} (every level gives the same bits; see \
+         \"SIMD levels\").",
         std::env::consts::ARCH,
         crate::chart::machine(),
         std::thread::available_parallelism().map_or(0, |n| n.get()),
+        bevy_cloth::solver::Simd::Auto.resolve().name(),
     )
     .ok();
     writeln!(w).ok();
@@ -137,18 +139,52 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         writeln!(w).ok();
     }
 
-    if let Some((springs, step)) = split {
+    if let Some(base) = levels.first() {
+        writeln!(w, "## SIMD levels").ok();
+        writeln!(w).ok();
         writeln!(
             w,
-            "The lab step at 21² (Chebyshev 32), timed again beside 32 bare spring passes (so \
-             its median differs a little from the tables'): {} per step, of which the 32 spring \
-             passes take {} ({:.0} %) and the 32 vertex passes (gather and update) most of the \
-             rest. The target was 100 µs.",
-            human(step),
-            human(springs),
-            100.0 * springs / step
+            "The spring pass (`solver::simd`) at every SIMD level this CPU runs, one thread: \
+             the lab step at 21² (Chebyshev 32) and its 32 spring passes alone, and the same \
+             step at the largest size. Every level gives the same bits (tested); `auto` runs \
+             AVX2 where the CPU has it. The vertex passes (gather and update) are the baseline's at every \
+             level."
         )
         .ok();
+        writeln!(w).ok();
+        let large_n = base.large.as_ref().map(|(n, _)| *n);
+        let large_head = large_n.map_or(String::new(), |n| format!(" step at {n}² |"));
+        writeln!(
+            w,
+            "| level | lanes | 32 spring passes at 21² | step at 21² | share of the step |{large_head} step against {} |",
+            base.level.name()
+        )
+        .ok();
+        writeln!(
+            w,
+            "|---|---|---|---|---|{}---|",
+            if large_n.is_some() { "---|" } else { "" }
+        )
+        .ok();
+        for row in &levels {
+            let large = row
+                .large
+                .as_ref()
+                .map_or(String::new(), |(_, t)| format!(" {} |", t.cell()));
+            writeln!(
+                w,
+                "| {} | {} | {} | {} | {:.0} % |{large} {:.2}× |",
+                row.level.name(),
+                row.level.lanes(),
+                row.springs.cell(),
+                row.step.cell(),
+                100.0 * row.springs.median / row.step.median,
+                row.step.median / base.step.median,
+            )
+            .ok();
+        }
+        writeln!(w).ok();
+        writeln!(w, "The lab step's target was 40 µs.").ok();
         writeln!(w).ok();
     }
 

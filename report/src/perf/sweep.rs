@@ -15,7 +15,7 @@ use bevy_cloth::solver::implicit::ImplicitSolver;
 use bevy_cloth::solver::linear::{
     CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
 };
-use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, SpringStiffness, StepParams};
+use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, Simd, SpringStiffness, StepParams};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
@@ -182,33 +182,74 @@ pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
     time_runs(config.budget, config.min_samples, || app.update())
 }
 
-/// At 21²: the time of 32 spring passes alone and of a whole Chebyshev 32
-/// step (seconds), or `None` when 21 is not among the sizes.
-pub(super) fn spring_pass_share(config: &PerfConfig) -> Option<(f64, f64)> {
+/// One SIMD level of the spring pass, timed ([`simd_levels`]).
+#[derive(Clone, Debug)]
+pub struct SimdRow {
+    /// The level (resolved: one this CPU runs).
+    pub level: Simd,
+    /// 32 bare spring passes at 21², one thread.
+    pub springs: Timing,
+    /// One Chebyshev 32 step at 21², one thread.
+    pub step: Timing,
+    /// One Chebyshev 32 step at the sweep's largest size, one thread, and
+    /// that size; `None` if it is 21².
+    pub large: Option<(usize, Timing)>,
+}
+
+/// Every SIMD level this CPU runs ([`Simd::supported`]), timed on the lab
+/// step at 21² (its 32 spring passes alone and the whole step) and at the
+/// sweep's largest size, or nothing when 21 is not among the sizes.
+pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
     if !config.sizes.contains(&21) {
-        return None;
+        return Vec::new();
     }
-    let params = StepParams::LAB;
-    let model = scale_model(21);
-    let start = warm_state(&model, &params);
-    let mut coeffs = Vec::new();
-    bevy_cloth::solver::kernels::stiffness_coeffs(&model, &params.stiffness, &mut coeffs);
-    let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
-    let springs = time_runs(config.budget, config.min_samples, || {
-        for _ in 0..32 {
-            bevy_cloth::solver::kernels::spring_terms(
-                true,
-                &model,
-                &start.positions,
-                &coeffs,
-                &mut terms,
-            );
-            std::hint::black_box(&mut terms);
-        }
-    });
+    let largest = config.sizes.iter().copied().max().unwrap_or(21);
     let method = AnyMethod::Implicit(ImplicitSolver::chebyshev(LAB_ITERATIONS, LAB_RHO));
-    let (step, _) = time_method(config, method, &model, &params, &start);
-    Some((springs.median, step.median))
+    let model = scale_model(21);
+    let start = warm_state(&model, &StepParams::LAB);
+    let large = (largest > 21).then(|| {
+        let model = scale_model(largest);
+        let start = warm_state(&model, &StepParams::LAB);
+        (model, start)
+    });
+    Simd::supported()
+        .into_iter()
+        .map(|level| {
+            let params = StepParams {
+                simd: level,
+                parallel: false,
+                ..StepParams::LAB
+            };
+            let mut coeffs = Vec::new();
+            bevy_cloth::solver::kernels::stiffness_coeffs(&model, &params.stiffness, &mut coeffs);
+            let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
+            let springs = time_runs(config.budget, config.min_samples, || {
+                for _ in 0..32 {
+                    bevy_cloth::solver::kernels::spring_terms(
+                        &params,
+                        &model,
+                        &start.positions,
+                        &coeffs,
+                        &mut terms,
+                    );
+                    std::hint::black_box(&mut terms);
+                }
+            });
+            let (step, _) = time_method(config, method, &model, &params, &start);
+            let large = large.as_ref().map(|(model, start)| {
+                (
+                    largest,
+                    time_method(config, method, model, &params, start).0,
+                )
+            });
+            SimdRow {
+                level,
+                springs,
+                step,
+                large,
+            }
+        })
+        .collect()
 }
 
 /// The sparse CG step against its parts, on the assignment's cloth.

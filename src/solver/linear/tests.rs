@@ -12,7 +12,7 @@ fn spec_params() -> StepParams {
         stiffness: SpringStiffness::uniform(10.0),
         damping: 1.0,
         gravity: Vec3::new(0.0, -9.8, 0.0),
-        parallel: true,
+        ..StepParams::LAB
     }
 }
 
