@@ -156,7 +156,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         let large_head = large_n.map_or(String::new(), |n| format!(" step at {n}² |"));
         writeln!(
             w,
-            "| level | lanes | 32 spring passes at 21² | step at 21² | share of the step |{large_head} step against {} |",
+            "| level | lanes | 32 spring passes at 21² | step at 21² | share of the step |{large_head} step time / {}'s |",
             base.level.name()
         )
         .ok();

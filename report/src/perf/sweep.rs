@@ -199,6 +199,11 @@ pub struct SimdRow {
 /// Every SIMD level this CPU runs ([`Simd::supported`]), timed on the lab
 /// step at 21² (its 32 spring passes alone and the whole step) and at the
 /// sweep's largest size, or nothing when 21 is not among the sizes.
+///
+/// The levels are timed in turns (one sample of each, then again), for the
+/// page's budget per measure and level, so that the machine's slow and fast
+/// spells fall on every level alike: timed one after the other, the levels'
+/// medians differed by more than the levels do.
 pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
     if !config.sizes.contains(&21) {
         return Vec::new();
@@ -207,49 +212,102 @@ pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
     let method = AnyMethod::Implicit(ImplicitSolver::chebyshev(LAB_ITERATIONS, LAB_RHO));
     let model = scale_model(21);
     let start = warm_state(&model, &StepParams::LAB);
+    let levels = Simd::supported();
+    let params = |level| StepParams {
+        simd: level,
+        parallel: false,
+        ..StepParams::LAB
+    };
+    let mut coeffs = Vec::new();
+    bevy_cloth::solver::kernels::stiffness_coeffs(&model, &StepParams::LAB.stiffness, &mut coeffs);
+    let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
+    let passes = interleaved(config, &levels, |level| {
+        let t = Instant::now();
+        for _ in 0..32 {
+            bevy_cloth::solver::kernels::spring_terms(
+                &params(level),
+                &model,
+                &start.positions,
+                &coeffs,
+                &mut terms,
+            );
+            std::hint::black_box(&mut terms);
+        }
+        t.elapsed().as_secs_f64()
+    });
+    let mut stepper = Stepper::new(method, &model, &start);
+    let steps = interleaved(config, &levels, |level| stepper.time(&params(level)));
     let large = (largest > 21).then(|| {
         let model = scale_model(largest);
         let start = warm_state(&model, &StepParams::LAB);
-        (model, start)
+        let mut stepper = Stepper::new(method, &model, &start);
+        interleaved(config, &levels, |level| stepper.time(&params(level)))
     });
-    Simd::supported()
-        .into_iter()
-        .map(|level| {
-            let params = StepParams {
-                simd: level,
-                parallel: false,
-                ..StepParams::LAB
-            };
-            let mut coeffs = Vec::new();
-            bevy_cloth::solver::kernels::stiffness_coeffs(&model, &params.stiffness, &mut coeffs);
-            let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
-            let springs = time_runs(config.budget, config.min_samples, || {
-                for _ in 0..32 {
-                    bevy_cloth::solver::kernels::spring_terms(
-                        &params,
-                        &model,
-                        &start.positions,
-                        &coeffs,
-                        &mut terms,
-                    );
-                    std::hint::black_box(&mut terms);
-                }
-            });
-            let (step, _) = time_method(config, method, &model, &params, &start);
-            let large = large.as_ref().map(|(model, start)| {
-                (
-                    largest,
-                    time_method(config, method, model, &params, start).0,
-                )
-            });
-            SimdRow {
-                level,
-                springs,
-                step,
-                large,
-            }
+    levels
+        .iter()
+        .enumerate()
+        .map(|(l, &level)| SimdRow {
+            level,
+            springs: passes[l],
+            step: steps[l],
+            large: large.as_ref().map(|t| (largest, t[l])),
         })
         .collect()
+}
+
+/// One method's step from one state, timed again and again.
+struct Stepper<'a> {
+    method: AnyMethod,
+    model: &'a ClothModel,
+    start: &'a ClothState,
+    state: ClothState,
+    ws: AnyWorkspace,
+}
+
+impl<'a> Stepper<'a> {
+    fn new(method: AnyMethod, model: &'a ClothModel, start: &'a ClothState) -> Self {
+        Self {
+            method,
+            model,
+            start,
+            state: start.clone(),
+            ws: AnyWorkspace::default(),
+        }
+    }
+
+    /// Seconds for one step from the start state (the copy is not timed).
+    fn time(&mut self, params: &StepParams) -> f64 {
+        self.state.copy_from(self.start);
+        let t = Instant::now();
+        self.method
+            .step(self.model, &mut self.state, params, &[], &mut self.ws)
+            .expect("the lab cloth steps");
+        t.elapsed().as_secs_f64()
+    }
+}
+
+/// `sample(level)` for every level in turn, two warm-up rounds, then rounds
+/// until each level has [`PerfConfig::min_samples`] samples and the rounds
+/// have taken the page's budget times the number of levels.
+fn interleaved(
+    config: &PerfConfig,
+    levels: &[Simd],
+    mut sample: impl FnMut(Simd) -> f64,
+) -> Vec<Timing> {
+    for _ in 0..2 {
+        for &level in levels {
+            sample(level);
+        }
+    }
+    let mut samples = vec![Vec::new(); levels.len()];
+    let budget = config.budget * levels.len() as u32;
+    let start = Instant::now();
+    while samples[0].len() < config.min_samples.max(1) || start.elapsed() < budget {
+        for (l, &level) in levels.iter().enumerate() {
+            samples[l].push(sample(level));
+        }
+    }
+    samples.into_iter().map(Timing::of).collect()
 }
 
 /// The sparse CG step against its parts, on the assignment's cloth.
