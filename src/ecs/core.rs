@@ -295,11 +295,11 @@ fn guard_and_measure(
             // What the step's own guard check measured, if nothing has
             // touched the state since (collision and `Cloth::state_mut` drop
             // it): the same check on the same state, so it is not done twice.
-            let cached = cloth.measured.take();
-            let result = match cached {
-                Some(measured) if params.stiffness.validate().is_ok() => Ok(measured),
+            let stiffness_ok = params.stiffness.validate().is_ok();
+            let result = match cloth.measured.take() {
+                Some(measured) if stiffness_ok => Ok(measured),
                 _ => {
-                    if params.stiffness.validate().is_err() {
+                    if !stiffness_ok {
                         // A method that ignores stiffness (PBD) runs with any;
                         // its energy then has no spring term rather than a NaN.
                         params.stiffness = solver::SpringStiffness::uniform(0.0);
