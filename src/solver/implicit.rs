@@ -27,7 +27,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
+use super::kernels::{for_chunks, for_chunks2, padded_gather, spring_terms, stiffness_coeffs};
 use super::{
     ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
 };
@@ -217,10 +217,8 @@ impl Method for ImplicitSolver {
                 None => {
                     let pass = &pass;
                     for_chunks(params.parallel, x, move |start, x| {
-                        for (j, xi) in x.iter_mut().enumerate() {
-                            let (g, d) = pass.gradient(start + j, *xi);
-                            *xi -= g * d;
-                        }
+                        pass.chunk(start, x.len())
+                            .each(x, |_, xi, step| *xi -= step);
                     });
                 }
                 Some(kind) => {
@@ -239,18 +237,17 @@ impl Method for ImplicitSolver {
                         &mut ws.x_prev,
                         &mut ws.chunk_sums,
                         move |start, x, prev| {
+                            let prev = &mut prev[..x.len()];
                             let mut update = 0.0f64;
-                            for (j, (xi, prev)) in x.iter_mut().zip(prev.iter_mut()).enumerate() {
-                                let (g, d) = pass.gradient(start + j, *xi);
-                                let step = g * d;
+                            pass.chunk(start, x.len()).each(x, |j, xi, step| {
                                 let x_hat = *xi - step;
-                                let before = *prev;
-                                *prev = *xi;
+                                let before = prev[j];
+                                prev[j] = *xi;
                                 *xi = omega * (x_hat - before) + before;
                                 if measure {
                                     update += f64::from(step.length_squared());
                                 }
-                            }
+                            });
                             update
                         },
                     );
@@ -367,12 +364,28 @@ struct VertexPass<'a> {
 impl<'a> VertexPass<'a> {
     fn new(data: &'a Gather, model: &'a ClothModel, spheres: &'a [PenaltySphere]) -> Self {
         let adjacency = model.topology().adjacency();
+        // What makes the padded gathers' unchecked reads sound.
+        assert!(data.terms.len() > model.topology().springs().len());
         Self {
             data,
             adjacency,
             padded: adjacency.padded(),
             pinned: model.pinned(),
             spheres,
+        }
+    }
+
+    /// The pass over vertices `start .. start + len` (one chunk).
+    fn chunk(&'a self, start: usize, len: usize) -> ChunkPass<'a> {
+        let range = start..start + len;
+        let d = self.data;
+        ChunkPass {
+            pass: self,
+            start,
+            target: &d.target[range.clone()],
+            mass_term: &d.mass_term[range.clone()],
+            inv_diag: &d.inv_diag[range.clone()],
+            rows: self.padded.map(|rows| &rows[range]),
         }
     }
 
@@ -383,12 +396,8 @@ impl<'a> VertexPass<'a> {
     fn gradient(&self, i: usize, xi: Vec3A) -> (Vec3A, f32) {
         let springs = match self.padded {
             // Fixed length, summed as a tree: short chains of additions.
-            Some(padded) => {
-                let [p, m] = &padded[i];
-                let t = |e: u32| self.data.terms[e as usize];
-                ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3])))
-                    - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
-            }
+            // SAFETY: as in `ChunkPass::each`.
+            Some(padded) => unsafe { padded_sum(&padded[i], &self.data.terms) },
             None => {
                 let (starts, ends) = self.adjacency.by_side(i);
                 let mut plus = Vec3A::ZERO;
@@ -417,6 +426,66 @@ impl<'a> VertexPass<'a> {
         }
         (g, inv_diag)
     }
+}
+
+/// A [`VertexPass`] over one chunk of vertices, its per-vertex data sliced
+/// to the chunk.
+struct ChunkPass<'a> {
+    pass: &'a VertexPass<'a>,
+    start: usize,
+    target: &'a [Vec3A],
+    mass_term: &'a [f32],
+    inv_diag: &'a [f32],
+    rows: Option<&'a [[[u32; 4]; 2]]>,
+}
+
+impl ChunkPass<'_> {
+    /// Calls `update(j, x_j, step_j)` for each vertex `j` of the chunk
+    /// (`x` is the chunk's positions) with its diagonal-Newton step
+    /// `g_j / diag_j`. A padded adjacency without penalty spheres (the lab)
+    /// runs a loop of its own: fixed-length gathers, the chunk's data read
+    /// in order, nothing to branch on.
+    #[inline(always)]
+    fn each(&self, x: &mut [Vec3A], mut update: impl FnMut(usize, &mut Vec3A, Vec3A)) {
+        match self.rows {
+            Some(rows) if self.pass.spheres.is_empty() => {
+                let terms = &self.pass.data.terms[..];
+                let n = x.len();
+                let (rows, target, mass, inv) = (
+                    &rows[..n],
+                    &self.target[..n],
+                    &self.mass_term[..n],
+                    &self.inv_diag[..n],
+                );
+                for j in 0..n {
+                    // SAFETY: the rows are the model's padded adjacency and `terms` has
+                    // one more entry than its springs (asserted in `VertexPass::new`).
+                    let springs = unsafe { padded_sum(&rows[j], terms) };
+                    let g = (x[j] - target[j]) * mass[j] + springs;
+                    update(j, &mut x[j], g * inv[j]);
+                }
+            }
+            _ => {
+                for (j, xi) in x.iter_mut().enumerate() {
+                    let (g, d) = self.pass.gradient(self.start + j, *xi);
+                    update(j, xi, g * d);
+                }
+            }
+        }
+    }
+}
+
+/// A vertex's padded gather of the spring terms: its start springs' terms
+/// minus its end springs' terms (see [`padded_gather`]).
+///
+/// # Safety
+///
+/// As [`padded_gather`]'s.
+#[inline(always)]
+unsafe fn padded_sum(row: &[[u32; 4]; 2], terms: &[Vec3A]) -> Vec3A {
+    // SAFETY: the caller's contract is padded_gather's.
+    let (plus, minus) = unsafe { padded_gather(row, terms, |t| *t, |t| *t) };
+    plus - minus
 }
 
 /// Checks an iteration count and a Chebyshev setting (shared by every

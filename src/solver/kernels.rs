@@ -168,6 +168,36 @@ pub(crate) fn spring_groups(
     }
 }
 
+/// The two sums of a vertex's padded row (see
+/// [`Adjacency::padded`](crate::model::Adjacency::padded)):
+/// `start(items[e])` over its start springs and `end(items[e])` over its
+/// end springs, each summed as a tree (short chains of additions).
+///
+/// # Safety
+///
+/// Every index of `row` is below `items.len()`. A padded row holds spring
+/// indices and the pad `springs.len()`, so per-spring `items` with one entry
+/// more than the springs (the pad's, which must sum as zero) are enough.
+/// Unchecked: the eight bounds checks were a quarter of the instructions
+/// of the lab's vertex pass, and that pass is bound by instructions.
+#[inline(always)]
+pub(crate) unsafe fn padded_gather<T>(
+    row: &[[u32; 4]; 2],
+    items: &[T],
+    start: impl Fn(&T) -> Vec3A,
+    end: impl Fn(&T) -> Vec3A,
+) -> (Vec3A, Vec3A) {
+    debug_assert!(row.iter().flatten().all(|&e| (e as usize) < items.len()));
+    let [p, m] = row;
+    // SAFETY: in bounds by the caller's contract.
+    let item = |e: u32| unsafe { items.get_unchecked(e as usize) };
+    let (a, b) = (|e| start(item(e)), |e| end(item(e)));
+    (
+        (a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])),
+        (b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3])),
+    )
+}
+
 /// Per spring `[k, kL]`, the coefficients of the implicit gradient term
 /// `d·k(1 − L/l)` for the spring pass.
 pub fn stiffness_coeffs(model: &ClothModel, stiffness: &SpringStiffness, out: &mut Vec<[f32; 2]>) {

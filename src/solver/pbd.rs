@@ -21,7 +21,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::spring_scales;
+use super::kernels::{padded_gather, spring_scales};
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -129,37 +129,45 @@ impl Method for PbdSolver {
                 let half = d * half;
                 proposals[e] = [mid + half, mid - half];
             });
-            let proposals = &ws.proposals;
-            let padded = adjacency.padded();
-            for i in 0..n {
-                if pinned[i] {
-                    continue;
-                }
-                let own = SELF_WEIGHT * x[i];
-                let sum = match padded {
-                    // Fixed length, summed as a tree (see the implicit solver).
-                    Some(padded) => {
-                        let [p, m] = &padded[i];
-                        let a = |e: u32| proposals[e as usize][0];
-                        let b = |e: u32| proposals[e as usize][1];
-                        own + (((a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])))
-                            + ((b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3]))))
+            let proposals = &ws.proposals[..];
+            let inv_weight = &ws.inv_weight[..n];
+            let (x, v) = (&mut x[..n], &mut v[..n]);
+            let update = |x: &mut Vec3A, v: &mut Vec3A, sum: Vec3A, inv_weight: f32| {
+                let new = sum * inv_weight;
+                *v += (new - *x) * inv_dt;
+                *x = new;
+            };
+            match adjacency.padded() {
+                // Fixed length, summed as a tree (see the implicit solver).
+                Some(rows) => {
+                    for (i, row) in rows[..n].iter().enumerate() {
+                        if pinned[i] {
+                            continue;
+                        }
+                        // SAFETY: the model's padded rows, and one proposal
+                        // per spring plus the zero pair the pad reads.
+                        let (starts, ends) =
+                            unsafe { padded_gather(row, proposals, |p| p[0], |p| p[1]) };
+                        let sum = SELF_WEIGHT * x[i] + (starts + ends);
+                        update(&mut x[i], &mut v[i], sum, inv_weight[i]);
                     }
-                    None => {
+                }
+                None => {
+                    for i in 0..n {
+                        if pinned[i] {
+                            continue;
+                        }
                         let (starts, ends) = adjacency.by_side(i);
-                        let mut sum = own;
+                        let mut sum = SELF_WEIGHT * x[i];
                         for &e in starts {
                             sum += proposals[e as usize][0];
                         }
                         for &e in ends {
                             sum += proposals[e as usize][1];
                         }
-                        sum
+                        update(&mut x[i], &mut v[i], sum, inv_weight[i]);
                     }
-                };
-                let new = sum * ws.inv_weight[i];
-                v[i] += (new - x[i]) * inv_dt;
-                x[i] = new;
+                }
             }
         }
         Ok(StepReport {
