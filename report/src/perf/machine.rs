@@ -6,12 +6,17 @@ use std::time::Duration;
 use bevy::math::Vec4;
 use bevy_cloth::methods::AnyMethod;
 use bevy_cloth::model::ClothModel;
+use bevy_cloth::solver::simd::Simd;
 
 use super::*;
 
 /// What one core of this machine achieves on simple kernels.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
+    /// The widest SIMD level this CPU runs, at which the bandwidths and
+    /// [`Limits::widest_gflops`] are measured (the crate's spring pass
+    /// picks its level at run time, so its limit is this one's).
+    pub level: Simd,
     /// Triad `a = b + s·c` over arrays far larger than the caches, GB/s.
     pub memory_gbs: f64,
     /// The same triad over arrays that fit in L1/L2 (3 × 16 KiB), GB/s.
@@ -19,14 +24,91 @@ pub struct Limits {
     /// The same triad over arrays past L2 but within a last-level cache
     /// (3 × 2 MiB), GB/s.
     pub l3_gbs: f64,
+    /// The L1/L2 triad in the baseline build's 4-lane code, GB/s.
+    pub baseline_cache_gbs: f64,
     /// Scalar `f32` multiply–adds, 8 independent chains, GFLOP/s.
     pub scalar_gflops: f64,
     /// 4-lane `Vec4` multiply–adds, 8 independent chains, GFLOP/s: the
-    /// packed width this crate's build uses (baseline x86-64: SSE2).
+    /// baseline build's packed width (SSE2 on x86-64, NEON on aarch64).
     pub simd_gflops: f64,
+    /// Fused multiply–adds at [`Limits::level`]'s full width (8 lanes with
+    /// AVX2 + FMA, 16 with AVX-512), 8 independent chains, GFLOP/s;
+    /// [`Limits::simd_gflops`] when the level is the baseline.
+    pub widest_gflops: f64,
 }
 
-fn triad(len: usize, budget: Duration, min_samples: usize) -> f64 {
+/// The triad's loop, inlined into a copy per SIMD level (the compiler
+/// vectorises each at its level's width).
+#[inline(always)]
+fn triad_loop(a: &mut [f32], b: &[f32], c: &[f32], s: f32) {
+    for ((a, b), c) in a.iter_mut().zip(b).zip(c) {
+        *a = b + s * c;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    //! The machine probe's kernels compiled for AVX2 + FMA and AVX-512:
+    //! callers check the CPU first ([`Simd::supported`]).
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn triad_avx2(a: &mut [f32], b: &[f32], c: &[f32], s: f32) {
+        super::triad_loop(a, b, c, s);
+    }
+
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn triad_avx512(a: &mut [f32], b: &[f32], c: &[f32], s: f32) {
+        super::triad_loop(a, b, c, s);
+    }
+
+    /// `rounds` times, 8 independent 8-lane fused multiply–adds.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn fma_avx2(rounds: usize, m: f32, a: f32) -> f32 {
+        let (m, a) = (_mm256_set1_ps(m), _mm256_set1_ps(a));
+        let mut acc = [_mm256_set1_ps(1.0); 8];
+        for _ in 0..rounds {
+            for x in &mut acc {
+                *x = _mm256_fmadd_ps(*x, m, a);
+            }
+        }
+        let sum = acc
+            .iter()
+            .fold(_mm256_setzero_ps(), |s, x| _mm256_add_ps(s, *x));
+        _mm256_cvtss_f32(sum)
+    }
+
+    /// `rounds` times, 8 independent 16-lane fused multiply–adds.
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn fma_avx512(rounds: usize, m: f32, a: f32) -> f32 {
+        let (m, a) = (_mm512_set1_ps(m), _mm512_set1_ps(a));
+        let mut acc = [_mm512_set1_ps(1.0); 8];
+        for _ in 0..rounds {
+            for x in &mut acc {
+                *x = _mm512_fmadd_ps(*x, m, a);
+            }
+        }
+        let sum = acc
+            .iter()
+            .fold(_mm512_setzero_ps(), |s, x| _mm512_add_ps(s, *x));
+        _mm512_reduce_add_ps(sum)
+    }
+}
+
+/// The triad at `level` (one this CPU runs).
+fn triad_at(level: Simd, a: &mut [f32], b: &[f32], c: &[f32], s: f32) {
+    match level {
+        // SAFETY: the callers pass only levels of `Simd::supported()`, whose
+        // features `is_x86_feature_detected!` found on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2 => unsafe { wide::triad_avx2(a, b, c, s) },
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx512 => unsafe { wide::triad_avx512(a, b, c, s) },
+        _ => triad_loop(a, b, c, s),
+    }
+}
+
+fn triad(level: Simd, len: usize, budget: Duration, min_samples: usize) -> f64 {
     let b = vec![1.0f32; len];
     let c = vec![2.0f32; len];
     let mut a = vec![0.0f32; len];
@@ -34,9 +116,7 @@ fn triad(len: usize, budget: Duration, min_samples: usize) -> f64 {
     let reps = (1 << 22) / len.max(1) + 1;
     let t = time_runs(budget, min_samples, || {
         for _ in 0..reps {
-            for ((a, b), c) in a.iter_mut().zip(&b).zip(&c) {
-                *a = b + s * c;
-            }
+            triad_at(level, &mut a, &b, &c, s);
             std::hint::black_box(&mut a);
         }
     });
@@ -88,16 +168,44 @@ pub fn limits(config: &PerfConfig) -> Limits {
         }
         std::hint::black_box(acc);
     });
+    let level = Simd::supported().last().copied().unwrap_or(Simd::Baseline);
+    let rounds = OPS / 8;
+    let (m, a) = (
+        std::hint::black_box(0.999_999f32),
+        std::hint::black_box(1e-7f32),
+    );
+    let widest_gflops = match level {
+        // SAFETY: `level` is the widest of `Simd::supported()`, so the CPU
+        // has its features.
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2 | Simd::Avx512 => {
+            let lanes = level.lanes();
+            let t = time_runs(config.budget, config.min_samples, || {
+                let r = if lanes == 16 {
+                    unsafe { wide::fma_avx512(rounds, m, a) }
+                } else {
+                    unsafe { wide::fma_avx2(rounds, m, a) }
+                };
+                std::hint::black_box(r);
+            });
+            (2 * lanes * OPS) as f64 / t.median / 1e9
+        }
+        _ => (2 * 4 * OPS) as f64 / simd.median / 1e9,
+    };
     Limits {
-        memory_gbs: triad(config.stream_len, config.budget, config.min_samples),
-        cache_gbs: triad(4096, config.budget, config.min_samples),
+        level,
+        memory_gbs: triad(level, config.stream_len, config.budget, config.min_samples),
+        cache_gbs: triad(level, 4096, config.budget, config.min_samples),
         l3_gbs: triad(
+            level,
             (1 << 19).min(config.stream_len),
             config.budget,
             config.min_samples,
         ),
+        baseline_cache_gbs: triad(Simd::Baseline, 4096, config.budget, config.min_samples),
         scalar_gflops: (2 * OPS) as f64 / scalar.median / 1e9,
         simd_gflops: (2 * 4 * OPS) as f64 / simd.median / 1e9,
+        widest_gflops,
     }
 }
 

@@ -197,6 +197,9 @@ mod tests {
             assert!(md.contains(&format!("| {name} |")), "{name}");
         }
         assert!(!md.contains("⚠"), "{md}");
+        // The limit is measured at the widest level this CPU runs.
+        let widest = bevy_cloth::solver::Simd::supported().last().unwrap().name();
+        assert!(md.contains(&format!("widest SIMD level ({widest}")), "{md}");
         let svg = std::fs::read_to_string(dir.join("perf-scaling.svg")).unwrap();
         assert!(svg.contains("<circle") && svg.contains("chebyshev 32"));
         let _ = std::fs::remove_dir_all(&dir);

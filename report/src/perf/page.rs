@@ -268,17 +268,23 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     writeln!(
         w,
-        "One core, simple kernels: a triad `a = b + s·c` streams {:.1} GB/s from memory \
-         (3 × {} MiB), {:.1} GB/s from the last-level cache (3 × 2 MiB) and {:.1} GB/s from \
-         L1/L2 (3 × 16 KiB); multiply–adds in 8 independent chains run at {:.2} GFLOP/s \
-         scalar and {:.2} GFLOP/s in 4-lane `Vec4` (this CPU also has AVX-512, 4× wider, \
-         which a baseline x86-64 build does not use).",
+        "One core, simple kernels at this CPU's widest SIMD level ({}; the crate's spring \
+         pass runs at any level the CPU has, chosen at run time): a triad `a = b + s·c` streams {:.1} GB/s from \
+         memory (3 × {} MiB), {:.1} GB/s from the last-level cache (3 × 2 MiB) and {:.1} \
+         GB/s from L1/L2 (3 × 16 KiB; {:.1} GB/s in the baseline build's 4-lane code); \
+         multiply–adds in 8 independent chains run at {:.2} GFLOP/s scalar, {:.2} GFLOP/s \
+         in 4-lane `Vec4` and {:.2} GFLOP/s at {}'s {} lanes.",
+        limits.level.name(),
         limits.memory_gbs,
         (4 * config.stream_len) >> 20,
         limits.l3_gbs,
         limits.cache_gbs,
+        limits.baseline_cache_gbs,
         limits.scalar_gflops,
-        limits.simd_gflops
+        limits.simd_gflops,
+        limits.widest_gflops,
+        limits.level.name(),
+        limits.level.lanes(),
     )
     .ok();
     writeln!(w).ok();
@@ -287,7 +293,8 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         "Per step, a spring-loop method must at least move, per iteration, 40 B per spring \
          (its record, coefficients and term), 20 B per incidence (an index and a term; two per \
          spring) and 88 B per vertex, and do about 14 flops per spring, 3 per incidence and 21 \
-         per vertex. Its limit is the larger of bytes / bandwidth and flops / SIMD rate, with \
+         per vertex. Its limit is the larger of bytes / bandwidth and flops / the widest SIMD \
+         rate, with \
          the bandwidth of where one iteration's working set fits (up to 512 KiB: L1/L2; up to \
          the last-level cache's {} MiB: last-level cache; else memory); the table gives the limit as a fraction of \
          the measured single-thread median (100 % would be at the limit).",
@@ -315,7 +322,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
             } else {
                 limits.memory_gbs
             };
-            let limit = (bytes / (bandwidth * 1e9)).max(flops / (limits.simd_gflops * 1e9));
+            let limit = (bytes / (bandwidth * 1e9)).max(flops / (limits.widest_gflops * 1e9));
             writeln!(
                 w,
                 "| {} | {}² | {:.2} MB | {:.2} Mflop | {} | {} | {:.0} % |",
