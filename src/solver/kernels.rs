@@ -111,9 +111,20 @@ pub(crate) fn spring_scales(
     springs: &[Spring],
     coeffs: &[[f32; 2]],
     x: &[Vec3A],
+    emit: impl FnMut(usize, Vec3A, f32),
+) {
+    spring_scales_by(springs, coeffs, |v| x[v as usize], emit);
+}
+
+/// [`spring_scales`] with the positions read by `load(vertex)`.
+#[inline(always)]
+pub(crate) fn spring_scales_by(
+    springs: &[Spring],
+    coeffs: &[[f32; 2]],
+    load: impl Fn(u32) -> Vec3A,
     mut emit: impl FnMut(usize, Vec3A, f32),
 ) {
-    spring_groups(springs, x, |e, d, l2| {
+    spring_groups_by(springs, &load, |e, d, l2| {
         let c = &coeffs[e..e + 4];
         let alpha = Vec4::new(c[0][0], c[1][0], c[2][0], c[3][0]);
         let beta = Vec4::new(c[0][1], c[1][1], c[2][1], c[3][1]);
@@ -125,7 +136,7 @@ pub(crate) fn spring_scales(
     });
     let done = springs.len() / 4 * 4;
     for (j, (s, [alpha, beta])) in springs[done..].iter().zip(&coeffs[done..]).enumerate() {
-        let d = x[s.a as usize] - x[s.b as usize];
+        let d = load(s.a) - load(s.b);
         let l2 = d.length_squared();
         let scale = if l2 > 0.0 {
             alpha - beta / l2.sqrt()
@@ -146,14 +157,24 @@ pub(crate) fn spring_scales(
 pub(crate) fn spring_groups(
     springs: &[Spring],
     x: &[Vec3A],
+    group: impl FnMut(usize, &[Vec3A; 4], Vec4),
+) {
+    spring_groups_by(springs, |v| x[v as usize], group);
+}
+
+/// [`spring_groups`] with the positions read by `load(vertex)`.
+#[inline(always)]
+fn spring_groups_by(
+    springs: &[Spring],
+    load: impl Fn(u32) -> Vec3A,
     mut group: impl FnMut(usize, &[Vec3A; 4], Vec4),
 ) {
     for (g, s) in springs.chunks_exact(4).enumerate() {
         let d = [
-            x[s[0].a as usize] - x[s[0].b as usize],
-            x[s[1].a as usize] - x[s[1].b as usize],
-            x[s[2].a as usize] - x[s[2].b as usize],
-            x[s[3].a as usize] - x[s[3].b as usize],
+            load(s[0].a) - load(s[0].b),
+            load(s[1].a) - load(s[1].b),
+            load(s[2].a) - load(s[2].b),
+            load(s[3].a) - load(s[3].b),
         ];
         let lanes = Mat4::from_cols(
             d[0].extend(0.0),
@@ -165,6 +186,44 @@ pub(crate) fn spring_groups(
         let l2 =
             lanes.x_axis * lanes.x_axis + lanes.y_axis * lanes.y_axis + lanes.z_axis * lanes.z_axis;
         group(4 * g, &d, l2);
+    }
+}
+
+/// Springs of a model (all or a range of them) with a bound that each of
+/// their vertex indices is below: what lets the spring pass read the
+/// positions without a bounds check per index.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Springs<'a> {
+    list: &'a [Spring],
+    vertices: usize,
+}
+
+impl<'a> Springs<'a> {
+    /// The model's springs: its topology checked every index against its
+    /// vertex count when it was built.
+    pub(crate) fn of(model: &'a ClothModel) -> Self {
+        Self {
+            list: model.topology().springs(),
+            vertices: model.vertex_count(),
+        }
+    }
+
+    /// The springs `range` of these.
+    pub(crate) fn range(self, range: std::ops::Range<usize>) -> Self {
+        Self {
+            list: &self.list[range],
+            vertices: self.vertices,
+        }
+    }
+
+    /// The springs.
+    pub(crate) fn list(self) -> &'a [Spring] {
+        self.list
+    }
+
+    /// Every vertex index of [`Springs::list`] is below this.
+    pub(crate) fn vertices(self) -> usize {
+        self.vertices
     }
 }
 
@@ -221,12 +280,12 @@ pub fn spring_terms(
     coeffs: &[[f32; 2]],
     terms: &mut [Vec3A],
 ) {
-    let springs = model.topology().springs();
+    let springs = Springs::of(model);
     for_chunks(params.parallel, terms, |start, terms| {
         let end = start + terms.len();
         spring_products(
             params.simd,
-            &springs[start..end],
+            springs.range(start..end),
             &coeffs[start..end],
             x,
             terms,

@@ -66,7 +66,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
-use super::kernels::{dot, spring_scales};
+use super::kernels::{Springs, dot, spring_scales};
 use super::simd::{Simd, spring_products};
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
@@ -388,9 +388,8 @@ impl ProjectiveWorkspace {
         x: &[Vec3A],
         spheres: &[PenaltySphere],
     ) -> Result<(), SolveError> {
-        let springs = model.topology().springs();
         let d = &mut self.d;
-        spring_products(self.simd, springs, &self.coeffs, x, d);
+        spring_products(self.simd, Springs::of(model), &self.coeffs, x, d);
         self.global(model, x, spheres)
     }
 
@@ -780,7 +779,7 @@ impl Method for ProjectiveSolver {
         // Residual: the objective's gradient over free vertices (the
         // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e).
         let d = &mut ws.d;
-        spring_products(ws.simd, springs, &ws.coeffs, x, d);
+        spring_products(ws.simd, Springs::of(model), &ws.coeffs, x, d);
         let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();

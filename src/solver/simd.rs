@@ -36,8 +36,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::spring_scales;
-use crate::model::Spring;
+use super::kernels::{Springs, spring_scales_by};
 
 /// Which SIMD instruction set the spring pass runs on
 /// ([`StepParams::simd`](super::StepParams::simd)). Every choice gives the
@@ -133,19 +132,27 @@ impl Simd {
 /// springs past the last full group of lanes run the baseline.
 ///
 /// # Panics
-/// If `coeffs` or `out` is shorter than `springs`, or a spring's vertex is
-/// out of `x` (a model's own springs never are).
+/// If `coeffs` or `out` is shorter than `springs`, or `x` has fewer than
+/// [`Springs::vertices`] positions.
 pub(crate) fn spring_products(
     simd: Simd,
-    springs: &[Spring],
+    springs: Springs<'_>,
     coeffs: &[[f32; 2]],
     x: &[Vec3A],
     out: &mut [Vec3A],
 ) {
+    assert!(
+        x.len() >= springs.vertices(),
+        "{} positions for a cloth of {} vertices",
+        x.len(),
+        springs.vertices()
+    );
+    let springs = springs.list();
     let n = springs.len();
     let (coeffs, out) = (&coeffs[..n], &mut out[..n]);
     let done = match simd.resolve() {
-        // SAFETY: `resolve` returns a level only if the CPU has its features.
+        // SAFETY: `resolve` returns a level only if the CPU has its features,
+        // and every index of `springs` is below `x.len()` (asserted above).
         #[cfg(target_arch = "x86_64")]
         Simd::Avx512 => unsafe { x86::products_avx512(springs, coeffs, x, out) },
         #[cfg(target_arch = "x86_64")]
@@ -153,7 +160,11 @@ pub(crate) fn spring_products(
         _ => 0,
     };
     let out = &mut out[done..];
-    spring_scales(&springs[done..], &coeffs[done..], x, |e, d, s| {
+    // SAFETY: only the springs' own indices are loaded, each below
+    // `x.len()` (asserted above). Unchecked at every level alike: the
+    // checks were a quarter of the wide kernels' instructions.
+    let load = |v: u32| unsafe { *x.get_unchecked(v as usize) };
+    spring_scales_by(&springs[done..], &coeffs[done..], load, |e, d, s| {
         out[e] = d * s;
     });
 }
@@ -176,7 +187,8 @@ mod x86 {
     /// returns how many it did.
     ///
     /// # Safety
-    /// The CPU must have AVX2 and FMA.
+    /// The CPU must have AVX2 and FMA, and every vertex index of `springs`
+    /// must be below `x.len()`.
     #[target_feature(enable = "avx,avx2,fma")]
     pub(super) unsafe fn products_avx2(
         springs: &[Spring],
@@ -189,7 +201,8 @@ mod x86 {
             let e = 8 * g;
             let s = &springs[e..e + 8];
             let c = &coeffs[e..e + 8];
-            let load = |v: usize| -> __m128 { x[v].into() };
+            // SAFETY: in bounds by the caller's contract.
+            let load = |v: usize| -> __m128 { unsafe { *x.get_unchecked(v) }.into() };
             // Springs i (low lane) and i + 4 (high lane): [d_i | d_{i+4}].
             let pair = |i: usize| {
                 let a = _mm256_set_m128(load(s[i + 4].a as usize), load(s[i].a as usize));
@@ -247,7 +260,8 @@ mod x86 {
     /// coefficients are permuted into that order.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F.
+    /// The CPU must have AVX-512F, and every vertex index of `springs` must
+    /// be below `x.len()`.
     #[target_feature(enable = "avx,avx2,fma,avx512f")]
     pub(super) unsafe fn products_avx512(
         springs: &[Spring],
@@ -270,7 +284,8 @@ mod x86 {
         for g in 0..groups {
             let e = 16 * g;
             let s = &springs[e..e + 16];
-            let load = |v: u32| -> __m128 { x[v as usize].into() };
+            // SAFETY: in bounds by the caller's contract.
+            let load = |v: u32| -> __m128 { unsafe { *x.get_unchecked(v as usize) }.into() };
             // Springs 4k .. 4k + 4, one per lane.
             let four = |k: usize| {
                 let s = &s[4 * k..4 * k + 4];

@@ -1,6 +1,7 @@
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
 use super::implicit::{ImplicitSolver, ImplicitWorkspace};
+use super::kernels::Springs;
 use super::pbd::{PbdSolver, PbdWorkspace};
 use super::*;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
@@ -316,6 +317,23 @@ fn measure_finds_the_stretch_and_energy_of_the_f64_formulas_in_one_pass() {
 }
 
 #[test]
+fn spring_products_refuse_positions_fewer_than_the_vertices() {
+    // The pass reads positions without a check per index: too few
+    // positions must panic at its entry, at every level, never read past.
+    let (model, state) = swinging(5);
+    let springs = Springs::of(&model);
+    let short = &state.positions[..state.positions.len() - 1];
+    for simd in Simd::supported() {
+        let mut out = vec![Vec3A::ZERO; springs.list().len()];
+        let coeffs = vec![[1.0, 1.0]; out.len()];
+        let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            simd::spring_products(simd, springs, &coeffs, short, &mut out)
+        }));
+        assert!(run.is_err(), "{simd:?} ran on too few positions");
+    }
+}
+
+#[test]
 fn spring_products_give_the_same_bits_at_every_simd_level() {
     let (model, mut state) = swinging(5);
     let mut seed = 7;
@@ -341,7 +359,7 @@ fn spring_products_give_the_same_bits_at_every_simd_level() {
             let mut out = vec![Vec3A::splat(f32::NAN); len];
             simd::spring_products(
                 simd,
-                &springs[start..],
+                Springs::of(&model).range(start..springs.len()),
                 &coeffs[start..],
                 &state.positions,
                 &mut out,
