@@ -21,7 +21,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{padded_gather, spring_scales};
+use super::kernels::{padded_gather, spring_scales_by};
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -123,9 +123,17 @@ impl Method for PbdSolver {
 
         for _ in 0..config.iterations {
             let proposals = &mut ws.proposals;
-            spring_scales(springs, &ws.coeffs, x, |e, d, half| {
+            // Positions read without a check per index, as in the implicit
+            // spring pass: the model's springs, and `x` has a position per
+            // vertex (`check_state` before the step; asserted here).
+            assert_eq!(x.len(), n);
+            let xs = &x[..];
+            // SAFETY: every index of the model's springs is below its vertex
+            // count (checked when its topology was built), `x.len()`.
+            let load = |v: u32| unsafe { *xs.get_unchecked(v as usize) };
+            spring_scales_by(springs, &ws.coeffs, load, |e, d, half| {
                 let s = &springs[e];
-                let mid = 0.5 * (x[s.a as usize] + x[s.b as usize]);
+                let mid = 0.5 * (load(s.a) + load(s.b));
                 let half = d * half;
                 proposals[e] = [mid + half, mid - half];
             });
