@@ -156,7 +156,10 @@
 //!   time and giving the same bits: [`solver::simd`]); one over vertices, which gathers its
 //!   springs' terms ([`model::Adjacency::by_side`], or fixed-length
 //!   [`model::Adjacency::padded`] rows: no scattered writes, no
-//!   atomics) and updates the vertex in the same loop. No allocation or
+//!   atomics) and updates the vertex in the same loop. Both passes are bound
+//!   by instructions at the lab's size, so neither checks an index per
+//!   read: the model's topology checked every index when it was built, and
+//!   each pass asserts once that its buffers are that long. No allocation or
 //!   hashing per step; sparse patterns and factorisations are reused.
 //! - Parallelism: cloths step in parallel across Bevy's compute pool
 //!   (`par_iter_mut`); a large cloth (at least [`solver::PARALLEL_MIN`]

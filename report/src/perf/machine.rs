@@ -11,21 +11,26 @@ use bevy_cloth::solver::simd::Simd;
 use super::*;
 
 /// What one core of this machine achieves on simple kernels.
+///
+/// Each bandwidth is the triad `a = b + s·c` at the fastest of the SIMD
+/// levels this CPU runs (the crate's spring pass chooses its level at run
+/// time), with its three arrays together half the size of the cache it
+/// measures.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// The widest SIMD level this CPU runs, at which the bandwidths and
-    /// [`Limits::widest_gflops`] are measured (the crate's spring pass
-    /// picks its level at run time, so its limit is this one's).
+    /// The widest SIMD level this CPU runs, at which
+    /// [`Limits::widest_gflops`] is measured.
     pub level: Simd,
-    /// Triad `a = b + s·c` over arrays far larger than the caches, GB/s.
+    /// The triad over arrays far larger than the caches, GB/s.
     pub memory_gbs: f64,
-    /// The same triad over arrays that fit in L1/L2 (3 × 16 KiB), GB/s.
-    pub cache_gbs: f64,
-    /// The same triad over arrays past L2 but within a last-level cache
-    /// (3 × 2 MiB), GB/s.
+    /// The triad within the L1 data cache ([`Caches::l1`]), GB/s.
+    pub l1_gbs: f64,
+    /// The triad past L1, within L2 ([`Caches::l2`]), GB/s.
+    pub l2_gbs: f64,
+    /// The triad past L2, within the last-level cache, GB/s.
     pub l3_gbs: f64,
-    /// The L1/L2 triad in the baseline build's 4-lane code, GB/s.
-    pub baseline_cache_gbs: f64,
+    /// The L1 triad in the baseline build's 4-lane code alone, GB/s.
+    pub baseline_l1_gbs: f64,
     /// Scalar `f32` multiply–adds, 8 independent chains, GFLOP/s.
     pub scalar_gflops: f64,
     /// 4-lane `Vec4` multiply–adds, 8 independent chains, GFLOP/s: the
@@ -35,6 +40,81 @@ pub struct Limits {
     /// AVX2 + FMA, 16 with AVX-512), 8 independent chains, GFLOP/s;
     /// [`Limits::simd_gflops`] when the level is the baseline.
     pub widest_gflops: f64,
+    /// The cache sizes the bandwidths were measured within.
+    pub caches: Caches,
+}
+
+impl Limits {
+    /// The bandwidth, GB/s, of where a working set of `bytes` fits.
+    pub fn bandwidth_for(&self, bytes: f64) -> f64 {
+        let c = &self.caches;
+        if bytes <= c.l1 as f64 {
+            self.l1_gbs
+        } else if bytes <= c.l2 as f64 {
+            self.l2_gbs
+        } else if bytes <= c.last as f64 {
+            self.l3_gbs
+        } else {
+            self.memory_gbs
+        }
+    }
+}
+
+/// One core's data cache sizes in bytes, from sysfs (48 KiB, 1 MiB and
+/// 32 MiB where it does not say).
+#[derive(Clone, Copy, Debug)]
+pub struct Caches {
+    /// L1 data cache.
+    pub l1: usize,
+    /// L2.
+    pub l2: usize,
+    /// The last level.
+    pub last: usize,
+}
+
+impl Caches {
+    /// Reads the sizes from `/sys/devices/system/cpu/cpu0/cache`.
+    pub fn of_this_cpu() -> Self {
+        let read = |i: usize, file: &str| {
+            let path = format!("/sys/devices/system/cpu/cpu0/cache/index{i}/{file}");
+            std::fs::read_to_string(path)
+                .ok()
+                .map(|s| s.trim().to_owned())
+        };
+        let mut caches = Caches {
+            l1: 48 << 10,
+            l2: 1 << 20,
+            last: 32 << 20,
+        };
+        let mut last_level = 0;
+        for i in 0..8 {
+            let (Some(level), Some(kind), Some(size)) =
+                (read(i, "level"), read(i, "type"), read(i, "size"))
+            else {
+                continue;
+            };
+            let (Ok(level), Some(Ok(kib))) = (
+                level.parse::<u32>(),
+                size.strip_suffix('K').map(str::parse::<usize>),
+            ) else {
+                continue;
+            };
+            if kind == "Instruction" {
+                continue;
+            }
+            let bytes = kib << 10;
+            match level {
+                1 => caches.l1 = bytes,
+                2 => caches.l2 = bytes,
+                _ => {}
+            }
+            if level > last_level {
+                last_level = level;
+                caches.last = bytes;
+            }
+        }
+        caches
+    }
 }
 
 /// The triad's loop, inlined into a copy per SIMD level (the compiler
@@ -192,20 +272,33 @@ pub fn limits(config: &PerfConfig) -> Limits {
         }
         _ => (2 * 4 * OPS) as f64 / simd.median / 1e9,
     };
+    let caches = Caches::of_this_cpu();
+    // Three arrays of `f32` filling half of `bytes`.
+    let len = |bytes: usize| (bytes / 2 / 12).max(256);
+    let levels = Simd::supported();
+    let fastest = |len: usize| {
+        levels
+            .iter()
+            .map(|&l| triad(l, len, config.budget, config.min_samples))
+            .fold(0.0f64, f64::max)
+    };
     Limits {
         level,
-        memory_gbs: triad(level, config.stream_len, config.budget, config.min_samples),
-        cache_gbs: triad(level, 4096, config.budget, config.min_samples),
-        l3_gbs: triad(
-            level,
-            (1 << 19).min(config.stream_len),
+        memory_gbs: fastest(config.stream_len),
+        l1_gbs: fastest(len(caches.l1)),
+        l2_gbs: fastest(len(caches.l2)),
+        // Past L2 (four times its size) but well within the last level.
+        l3_gbs: fastest(len((8 * caches.l2).min(caches.last)).min(config.stream_len)),
+        baseline_l1_gbs: triad(
+            Simd::Baseline,
+            len(caches.l1),
             config.budget,
             config.min_samples,
         ),
-        baseline_cache_gbs: triad(Simd::Baseline, 4096, config.budget, config.min_samples),
         scalar_gflops: (2 * OPS) as f64 / scalar.median / 1e9,
         simd_gflops: (2 * 4 * OPS) as f64 / simd.median / 1e9,
         widest_gflops,
+        caches,
     }
 }
 
@@ -235,17 +328,39 @@ pub fn work_per_iteration(method: &AnyMethod, model: &ClothModel) -> Option<(u32
     Some((iterations, iteration.0, iteration.1))
 }
 
-/// The last-level cache's size in bytes from sysfs (32 MiB if unknown).
-pub(super) fn last_level_cache() -> usize {
-    (0..8)
-        .rev()
-        .find_map(|i| {
-            let size = std::fs::read_to_string(format!(
-                "/sys/devices/system/cpu/cpu0/cache/index{i}/size"
-            ))
-            .ok()?;
-            let kib: usize = size.trim().strip_suffix('K')?.parse().ok()?;
-            Some(kib << 10)
-        })
-        .unwrap_or(32 << 20)
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn caches_are_ordered_and_a_working_set_gets_the_bandwidth_of_where_it_fits() {
+        let caches = Caches::of_this_cpu();
+        assert!(0 < caches.l1 && caches.l1 < caches.l2 && caches.l2 <= caches.last);
+        let limits = Limits {
+            level: Simd::Baseline,
+            memory_gbs: 1.0,
+            l1_gbs: 4.0,
+            l2_gbs: 3.0,
+            l3_gbs: 2.0,
+            baseline_l1_gbs: 4.0,
+            scalar_gflops: 1.0,
+            simd_gflops: 4.0,
+            widest_gflops: 4.0,
+            caches: Caches {
+                l1: 1 << 10,
+                l2: 1 << 20,
+                last: 1 << 30,
+            },
+        };
+        for (bytes, gbs) in [
+            (1 << 10, 4.0),
+            ((1 << 10) + 1, 3.0),
+            (1 << 20, 3.0),
+            ((1 << 20) + 1, 2.0),
+            (1 << 30, 2.0),
+            ((1 << 30) + 1, 1.0),
+        ] {
+            assert_eq!(limits.bandwidth_for(bytes as f64), gbs, "{bytes} B");
+        }
+    }
 }

@@ -29,7 +29,7 @@ mod machine;
 mod page;
 mod sweep;
 
-pub use machine::{Limits, limits, work_per_iteration};
+pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
 pub use sweep::{
     Case, CgParts, SimdRow, cg_parts, many_cloths, scale_model, simd_levels, sweep, sweep_methods,
@@ -197,9 +197,16 @@ mod tests {
             assert!(md.contains(&format!("| {name} |")), "{name}");
         }
         assert!(!md.contains("⚠"), "{md}");
-        // The limit is measured at the widest level this CPU runs.
-        let widest = bevy_cloth::solver::Simd::supported().last().unwrap().name();
-        assert!(md.contains(&format!("widest SIMD level ({widest}")), "{md}");
+        // The arithmetic limit is measured at the widest level this CPU
+        // runs, and the triads at every level it runs.
+        let levels = bevy_cloth::solver::Simd::supported();
+        let widest = levels.last().unwrap();
+        assert!(
+            md.contains(&format!("at {}'s {} lanes", widest.name(), widest.lanes())),
+            "{md}"
+        );
+        let names: Vec<_> = levels.iter().map(|l| l.name()).collect();
+        assert!(md.contains(&format!("runs ({})", names.join(", "))), "{md}");
         let svg = std::fs::read_to_string(dir.join("perf-scaling.svg")).unwrap();
         assert!(svg.contains("<circle") && svg.contains("chebyshev 32"));
         let _ = std::fs::remove_dir_all(&dir);

@@ -6,7 +6,6 @@ use std::path::Path;
 use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
 use plotters::prelude::*;
 
-use super::machine::last_level_cache;
 use super::*;
 
 /// Runs the page and writes its files. Returns the markdown.
@@ -268,18 +267,26 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     writeln!(
         w,
-        "One core, simple kernels at this CPU's widest SIMD level ({}; the crate's spring \
-         pass runs at any level the CPU has, chosen at run time): a triad `a = b + s·c` streams {:.1} GB/s from \
-         memory (3 × {} MiB), {:.1} GB/s from the last-level cache (3 × 2 MiB) and {:.1} \
-         GB/s from L1/L2 (3 × 16 KiB; {:.1} GB/s in the baseline build's 4-lane code); \
-         multiply–adds in 8 independent chains run at {:.2} GFLOP/s scalar, {:.2} GFLOP/s \
-         in 4-lane `Vec4` and {:.2} GFLOP/s at {}'s {} lanes.",
-        limits.level.name(),
+        "One core, simple kernels. A triad `a = b + s·c`, at the fastest of the SIMD levels \
+         this CPU runs ({}) and with its three arrays half the size of the cache it measures, \
+         streams {:.1} GB/s from memory (3 × {} MiB), {:.1} GB/s from the last-level cache, \
+         {:.1} GB/s from L2 ({} KiB) and {:.1} GB/s from L1 ({} KiB; {:.1} GB/s in the \
+         baseline build's 4-lane code alone). Multiply–adds in 8 independent chains run at \
+         {:.2} GFLOP/s scalar, {:.2} GFLOP/s in 4-lane `Vec4` and {:.2} GFLOP/s at {}'s {} \
+         lanes (the widest level).",
+        bevy_cloth::solver::Simd::supported()
+            .iter()
+            .map(|l| l.name())
+            .collect::<Vec<_>>()
+            .join(", "),
         limits.memory_gbs,
         (4 * config.stream_len) >> 20,
         limits.l3_gbs,
-        limits.cache_gbs,
-        limits.baseline_cache_gbs,
+        limits.l2_gbs,
+        limits.caches.l2 >> 10,
+        limits.l1_gbs,
+        limits.caches.l1 >> 10,
+        limits.baseline_l1_gbs,
         limits.scalar_gflops,
         limits.simd_gflops,
         limits.widest_gflops,
@@ -294,11 +301,12 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
          (its record, coefficients and term), 20 B per incidence (an index and a term; two per \
          spring) and 88 B per vertex, and do about 14 flops per spring, 3 per incidence and 21 \
          per vertex. Its limit is the larger of bytes / bandwidth and flops / the widest SIMD \
-         rate, with \
-         the bandwidth of where one iteration's working set fits (up to 512 KiB: L1/L2; up to \
-         the last-level cache's {} MiB: last-level cache; else memory); the table gives the limit as a fraction of \
-         the measured single-thread median (100 % would be at the limit).",
-        last_level_cache() >> 20
+         rate, with the bandwidth of where one iteration's working set fits (L1 up to {} KiB, \
+         L2 up to {} KiB, the last level up to {} MiB, else memory); the table gives the limit \
+         as a fraction of the measured single-thread median (100 % would be at the limit).",
+        limits.caches.l1 >> 10,
+        limits.caches.l2 >> 10,
+        limits.caches.last >> 20,
     )
     .ok();
     writeln!(w).ok();
@@ -315,13 +323,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
                 per_iteration * f64::from(iterations),
                 flops * f64::from(iterations),
             );
-            let bandwidth = if per_iteration <= (512 << 10) as f64 {
-                limits.cache_gbs
-            } else if per_iteration <= last_level_cache() as f64 {
-                limits.l3_gbs
-            } else {
-                limits.memory_gbs
-            };
+            let bandwidth = limits.bandwidth_for(per_iteration);
             let limit = (bytes / (bandwidth * 1e9)).max(flops / (limits.widest_gflops * 1e9));
             writeln!(
                 w,
