@@ -61,13 +61,16 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(
         w,
         "Method: each case starts every sample from the same swinging state (20 Chebyshev \
-         steps from rest; the state copy is not timed), warms up twice, then samples for \
-         {:.1} s (at least {} samples). Cells are `median (first–third quartile)`. The cloth \
+         steps from rest; the state copy is not timed) and warms up twice. The cases of a \
+         size take turns, {} rounds of a slice each, {:.1} s and at least {} samples per case \
+         in all: a slow phase of this shared machine falls on every method of the size alike, \
+         so ratios within a column are fair. Cells are `median (first–third quartile)`. The cloth \
          is the lab's, physically the same at every size: 10×10 units, total mass 441, \
          corners pinned, k = 8000 at every resolution (a row of n − 1 springs in series has \
          stiffness k/(n − 1) and n rows act in parallel, so the sheet's stiffness stays about \
          k), dt = 0.0333, damping 0.99. \"guard\" is the divergence guard's default check on \
          the timed step's result: silent means it would have accepted it.",
+        SWEEP_ROUNDS,
         config.budget.as_secs_f64(),
         config.min_samples
     )
@@ -303,7 +306,10 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
          per vertex. Its limit is the larger of bytes / bandwidth and flops / the widest SIMD \
          rate, with the bandwidth of where one iteration's working set fits (L1 up to {} KiB, \
          L2 up to {} KiB, the last level up to {} MiB, else memory); the table gives the limit \
-         as a fraction of the measured single-thread median (100 % would be at the limit).",
+         as a fraction of the measured single-thread median (100 % would be at the limit). \
+         A fraction above 100 % means the model is too pessimistic at that size, not that the \
+         step beats the machine: it picks the bandwidth by the bytes an iteration moves, while \
+         part of them still hit the faster cache.",
         limits.caches.l1 >> 10,
         limits.caches.l2 >> 10,
         limits.caches.last >> 20,

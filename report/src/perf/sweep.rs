@@ -76,35 +76,6 @@ pub struct Case {
     pub guard: Option<String>,
 }
 
-fn time_method(
-    config: &PerfConfig,
-    method: AnyMethod,
-    model: &ClothModel,
-    params: &StepParams,
-    start: &ClothState,
-) -> (Timing, Option<String>) {
-    let mut ws = AnyWorkspace::default();
-    let mut state = start.clone();
-    let mut failed = None;
-    let timing = time_samples(config.budget, config.min_samples, || {
-        state.copy_from(start);
-        let t = Instant::now();
-        let result = method.step(model, &mut state, params, &[], &mut ws);
-        let elapsed = t.elapsed().as_secs_f64();
-        if let Err(e) = result {
-            failed = Some(e.to_string());
-        }
-        elapsed
-    });
-    let guard = failed.or_else(|| {
-        GuardBounds::default()
-            .check(model, &state, start, params)
-            .err()
-            .map(|e| format!("{e:?}"))
-    });
-    (timing, guard)
-}
-
 /// Does `method` have loops that run in parallel chunks at this size?
 fn has_parallel_loops(method: &AnyMethod, model: &ClothModel) -> bool {
     // Projective dynamics splits its three-column solve over two threads
@@ -115,13 +86,32 @@ fn has_parallel_loops(method: &AnyMethod, model: &ClothModel) -> bool {
     ) && model.topology().springs().len() >= bevy_cloth::solver::PARALLEL_MIN
 }
 
-/// The scale sweep.
+/// Time slices per case in the scale sweep: each size's cases take turns,
+/// a slice each per round, so that a slow phase of a shared machine falls
+/// on every method of the size alike and their ratios stay fair.
+pub const SWEEP_ROUNDS: u32 = 5;
+
+/// One timed column of one method at one size.
+struct Slot<'a> {
+    case: usize,
+    parallel: bool,
+    params: StepParams,
+    stepper: Stepper<'a>,
+    samples: Vec<f64>,
+    failed: Option<String>,
+}
+
+/// The scale sweep. At each size the cases are timed in
+/// [`SWEEP_ROUNDS`] turns of `budget / SWEEP_ROUNDS` each (after two
+/// warm-up steps), so each case still gets [`PerfConfig::budget`] and
+/// [`PerfConfig::min_samples`] in all.
 pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
     let params = StepParams::LAB;
     let mut cases = Vec::new();
     for &n in &config.sizes {
         let model = scale_model(n);
         let start = warm_state(&model, &params);
+        let mut slots = Vec::new();
         for (name, method, sparse) in sweep_methods() {
             if sparse && n > config.max_side_sparse
                 || config
@@ -131,22 +121,77 @@ pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
             {
                 continue;
             }
-            progress(&format!("{name} at {n}²"));
-            let serial_params = StepParams {
-                parallel: false,
-                ..params
+            let case = cases.len();
+            let columns = if has_parallel_loops(&method, &model) {
+                &[false, true][..]
+            } else {
+                &[false][..]
             };
-            let (serial, guard) = time_method(config, method, &model, &serial_params, &start);
-            let parallel = has_parallel_loops(&method, &model)
-                .then(|| time_method(config, method, &model, &params, &start).0);
+            for &parallel in columns {
+                slots.push(Slot {
+                    case,
+                    parallel,
+                    params: StepParams { parallel, ..params },
+                    stepper: Stepper::new(method, &model, &start),
+                    samples: Vec::new(),
+                    failed: None,
+                });
+            }
             cases.push(Case {
                 method: name,
                 solver: method,
                 n,
-                serial,
-                parallel,
-                guard,
+                // Filled in after the rounds.
+                serial: Timing {
+                    median: 0.0,
+                    q1: 0.0,
+                    q3: 0.0,
+                    samples: 0,
+                },
+                parallel: None,
+                guard: None,
             });
+        }
+        let slice = config.budget / SWEEP_ROUNDS;
+        for round in 0..SWEEP_ROUNDS {
+            progress(&format!("{n}²: round {} of {SWEEP_ROUNDS}", round + 1));
+            let wanted =
+                (config.min_samples.max(1) * (round as usize + 1)).div_ceil(SWEEP_ROUNDS as usize);
+            for slot in &mut slots {
+                let sample = |slot: &mut Slot| match slot.stepper.try_time(&slot.params) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        slot.failed.get_or_insert(e);
+                        0.0
+                    }
+                };
+                if round == 0 {
+                    for _ in 0..2 {
+                        sample(slot);
+                    }
+                }
+                let begun = Instant::now();
+                while slot.samples.len() < wanted || begun.elapsed() < slice {
+                    let t = sample(slot);
+                    slot.samples.push(t);
+                }
+            }
+        }
+        for slot in slots {
+            let case = &mut cases[slot.case];
+            let timing = Timing::of(slot.samples);
+            if slot.parallel {
+                case.parallel = Some(timing);
+            } else {
+                case.serial = timing;
+                let state = &slot.stepper.state;
+                case.guard = slot.failed.or_else(|| {
+                    GuardBounds::default()
+                        .check(&model, state, &start, &slot.params)
+                        .err()
+                        .map(|e| format!("{e:?}"))
+                });
+            }
         }
     }
     cases
@@ -277,12 +322,18 @@ impl<'a> Stepper<'a> {
 
     /// Seconds for one step from the start state (the copy is not timed).
     fn time(&mut self, params: &StepParams) -> f64 {
+        self.try_time(params).expect("the lab cloth steps")
+    }
+
+    /// [`Stepper::time`], or why the step failed.
+    fn try_time(&mut self, params: &StepParams) -> Result<f64, String> {
         self.state.copy_from(self.start);
         let t = Instant::now();
-        self.method
-            .step(self.model, &mut self.state, params, &[], &mut self.ws)
-            .expect("the lab cloth steps");
-        t.elapsed().as_secs_f64()
+        let result = self
+            .method
+            .step(self.model, &mut self.state, params, &[], &mut self.ws);
+        let elapsed = t.elapsed().as_secs_f64();
+        result.map(|_| elapsed).map_err(|e| e.to_string())
     }
 }
 
