@@ -173,8 +173,9 @@ impl ClothBuilder {
     /// buffer, **welded**: vertices at the same position (within a millionth
     /// of the mesh's size), which a UV-mapped or flat-shaded mesh splits
     /// along its seams, become one simulated vertex, so the cloth does not
-    /// tear there. [`ClothModel::welded_from`] maps the mesh's vertices to
-    /// the simulated ones, and the mesh write-back
+    /// tear there. A mesh whose vertex order scatters its edges in memory
+    /// is renumbered for locality. [`ClothModel::welded_from`] maps the
+    /// mesh's vertices to the simulated ones, and the mesh write-back
     /// (`render::ClothRenderPlugin`) writes them back unwelded, with normals
     /// smooth across the seams. Pins
     /// ([`with_pins`](Self::with_pins)) are mesh vertex indices.
@@ -205,9 +206,11 @@ impl ClothBuilder {
         Ok(Self::from_triangles(positions, indices).with_welding(true))
     }
 
-    /// Whether vertices at the same position are merged into one (see
+    /// Whether vertices at the same position are merged into one and the
+    /// vertices renumbered for locality where that clearly helps (see
     /// [`from_mesh`](Self::from_mesh), where it is on; off for
-    /// [`from_triangles`](Self::from_triangles)). No effect on grids.
+    /// [`from_triangles`](Self::from_triangles), whose vertices keep the
+    /// numbers given). No effect on grids.
     pub fn with_welding(mut self, on: bool) -> Self {
         if let Source::Triangles { weld, .. } = &mut self.source {
             *weld = on;
@@ -227,7 +230,10 @@ impl ClothBuilder {
         self
     }
 
-    /// One mass per vertex.
+    /// One mass per vertex. For [`from_mesh`](Self::from_mesh): per vertex
+    /// after welding (the mesh's order with each seam copy dropped), and the
+    /// masses follow the cloth's renumbering (see
+    /// [`ClothModel::welded_from`]).
     pub fn with_masses(mut self, masses: Vec<f32>) -> Self {
         self.mass = Mass::Each(masses);
         self
@@ -308,9 +314,45 @@ impl ClothBuilder {
                         .collect();
                     if welded.positions.len() < positions.len() {
                         self.pins = welded.pins(&self.pins, positions.len())?;
-                        weld_map = Some(welded.map);
+                        weld_map = Some(welded.map.clone());
                     }
-                    (welded.positions, tris, None)
+                    let mut positions = welded.positions;
+                    let mut tris = tris;
+                    // A mesh from a file may come in any vertex order: number
+                    // the cloth's vertices for locality when that clearly helps
+                    // (see `order`); `welded_from` maps through it.
+                    if let Some(new_of_old) = super::order::locality_order(positions.len(), &tris) {
+                        let new = |v: u32| new_of_old[v as usize];
+                        let mut reordered = vec![Vec3::ZERO; positions.len()];
+                        for (v, p) in positions.iter().enumerate() {
+                            reordered[new_of_old[v] as usize] = *p;
+                        }
+                        positions = reordered;
+                        for t in &mut tris {
+                            *t = t.map(new);
+                        }
+                        weld_map = Some(match weld_map {
+                            Some(map) => map.into_iter().map(new).collect(),
+                            None => new_of_old.clone(),
+                        });
+                        // Pins and per-vertex masses were given in the welded
+                        // order; out-of-range ones are left to the checks below.
+                        for p in &mut self.pins {
+                            if (*p as usize) < positions.len() {
+                                *p = new(*p);
+                            }
+                        }
+                        if let Mass::Each(ms) = &mut self.mass
+                            && ms.len() == positions.len()
+                        {
+                            let mut reordered = vec![0.0; ms.len()];
+                            for (v, &m) in ms.iter().enumerate() {
+                                reordered[new_of_old[v] as usize] = m;
+                            }
+                            *ms = reordered;
+                        }
+                    }
+                    (positions, tris, None)
                 } else {
                     let tris = indices
                         .chunks_exact(3)

@@ -6,6 +6,7 @@
 
 mod builder;
 mod error;
+mod order;
 mod state;
 mod topology;
 
@@ -26,7 +27,7 @@ pub struct ClothModel {
     pinned: Vec<bool>,
     pins: Vec<u32>,
     size: f32,
-    /// For each vertex of the source mesh, the vertex it was welded into.
+    /// For each vertex of the source mesh, the cloth vertex it became.
     pub(crate) welded_from: Option<Arc<Vec<u32>>>,
 }
 
@@ -60,10 +61,14 @@ impl ClothModel {
         }
     }
 
-    /// For a cloth built from a mesh whose seams were welded
-    /// ([`ClothBuilder::from_mesh`]): for each vertex of that mesh, the
-    /// cloth vertex it became. `None` when no vertex was merged (mesh and
-    /// cloth vertices are the same).
+    /// For a cloth built from a mesh ([`ClothBuilder::from_mesh`]): for each
+    /// vertex of that mesh, the cloth vertex it became. A mesh's seams are
+    /// welded (copies of a vertex become one), and a mesh whose vertex order
+    /// scatters its edges in memory is renumbered for locality (reverse
+    /// Cuthill–McKee; a shuffled 101² grid mesh stepped about 3× slower
+    /// before). `None` when neither happened (mesh and cloth vertices are
+    /// the same). Pins and per-vertex masses given to the builder follow the
+    /// renumbering; the mesh write-back reads through this map.
     #[inline]
     pub fn welded_from(&self) -> Option<&[u32]> {
         self.welded_from.as_deref().map(Vec::as_slice)
