@@ -160,3 +160,70 @@ fn a_mesh_that_cannot_be_a_cloth_is_reported_not_a_panic() {
         );
     }
 }
+
+#[test]
+fn a_mesh_in_scattered_order_is_renumbered_and_written_back_in_its_own() {
+    // A 12×12 grid mesh whose row-major vertex v is mesh vertex perm[v].
+    let n = 12u32;
+    let mut perm: Vec<u32> = (0..n * n).collect();
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    for i in (1..perm.len()).rev() {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        perm.swap(i, (seed % (i as u64 + 1)) as usize);
+    }
+    let mut positions = vec![[0.0f32; 3]; (n * n) as usize];
+    for j in 0..n {
+        for i in 0..n {
+            positions[perm[(j * n + i) as usize] as usize] = [i as f32, 0.0, j as f32];
+        }
+    }
+    let at = |i: u32, j: u32| perm[(j * n + i) as usize];
+    let mut indices = Vec::new();
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            indices.extend([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+            indices.extend([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+        }
+    }
+    let mesh = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
+    .with_inserted_indices(Indices::U32(indices));
+    // Pinned along z = 0, given as mesh indices.
+    let edge: Vec<u32> = (0..n).map(|i| at(i, 0)).collect();
+    let mut app = mesh_app();
+    let handle = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let pins = edge.clone();
+    let entity = app
+        .world_mut()
+        .spawn((
+            ClothFromMesh::new(handle.clone()).with(move |_, b| Ok(b.with_pins(pins.clone()))),
+            ImplicitSolver::chebyshev(32, 0.995),
+            Mesh3d(handle.clone()),
+        ))
+        .id();
+    run_steps(&mut app, 40);
+    app.update();
+    let cloth = app.world().get::<Cloth>(entity).expect("built");
+    let map = cloth.model().welded_from().expect("renumbered").to_vec();
+    let cloth_x = cloth.positions().to_vec();
+    let meshes = app.world().resource::<Assets<Mesh>>();
+    let x = float3(meshes.get(&handle).unwrap(), Mesh::ATTRIBUTE_POSITION);
+    assert_eq!(
+        x.len(),
+        positions.len(),
+        "written back in the mesh's numbering"
+    );
+    for (m, p) in x.iter().enumerate() {
+        assert_eq!(*p, Vec3::from(cloth_x[map[m] as usize]), "mesh vertex {m}");
+    }
+    // The pinned edge (mesh indices) stayed; the far edge fell.
+    for &m in &edge {
+        assert_eq!(x[m as usize], Vec3::from(positions[m as usize]), "pin {m}");
+    }
+    assert!((0..n).all(|i| x[at(i, n - 1) as usize].y < -3.0));
+}
