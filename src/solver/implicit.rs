@@ -158,6 +158,17 @@ impl Method for ImplicitSolver {
         // One term per spring and a zero past them, which padded gathers read.
         ws.gather.terms.clear();
         ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
+        ws.gather.row_bytes.clear();
+        let bytes = std::mem::size_of::<Vec3A>() as u32;
+        // (Offsets past u32 would take 268 million springs: such a cloth
+        // runs the unpadded gathers.)
+        if let Some(rows) = adjacency.padded()
+            && springs.len() < (u32::MAX / bytes) as usize
+        {
+            ws.gather
+                .row_bytes
+                .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * bytes))));
+        }
         let ClothState {
             positions: x,
             velocities: v,
@@ -328,6 +339,10 @@ struct Gather {
     inv_diag: Vec<f32>,
     /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
     base_diag: Vec<f32>,
+    /// The padded rows as byte offsets into `terms` (index × 16), filled
+    /// per step from the model's: the gathers' addresses without a shift
+    /// each (the lab step ×0.95). Empty without padded rows.
+    row_bytes: Vec<[[u32; 4]; 2]>,
 }
 
 impl ImplicitWorkspace {
@@ -385,7 +400,7 @@ impl<'a> VertexPass<'a> {
             target: &d.target[range.clone()],
             mass_term: &d.mass_term[range.clone()],
             inv_diag: &d.inv_diag[range.clone()],
-            rows: self.padded.map(|rows| &rows[range]),
+            rows: (!d.row_bytes.is_empty()).then(|| &d.row_bytes[range]),
         }
     }
 
@@ -436,6 +451,7 @@ struct ChunkPass<'a> {
     target: &'a [Vec3A],
     mass_term: &'a [f32],
     inv_diag: &'a [f32],
+    /// The chunk's padded rows as byte offsets (`Gather::row_bytes`).
     rows: Option<&'a [[[u32; 4]; 2]]>,
 }
 
@@ -458,9 +474,10 @@ impl ChunkPass<'_> {
                     &self.inv_diag[..n],
                 );
                 for j in 0..n {
-                    // SAFETY: the rows are the model's padded adjacency and `terms` has
-                    // one more entry than its springs (asserted in `VertexPass::new`).
-                    let springs = unsafe { padded_sum(&rows[j], terms) };
+                    // SAFETY: the rows are this step's model's padded rows times
+                    // 16, and `terms` has one more entry than its springs
+                    // (asserted in `VertexPass::new`).
+                    let springs = unsafe { padded_sum_bytes(&rows[j], terms) };
                     let g = (x[j] - target[j]) * mass[j] + springs;
                     update(j, &mut x[j], g * inv[j]);
                 }
@@ -473,6 +490,26 @@ impl ChunkPass<'_> {
             }
         }
     }
+}
+
+/// [`padded_sum`] over a row of byte offsets (`index × 16`).
+///
+/// # Safety
+///
+/// Every offset of `row` is `16·e` for an `e` below `terms.len()`.
+#[inline(always)]
+unsafe fn padded_sum_bytes(row: &[[u32; 4]; 2], terms: &[Vec3A]) -> Vec3A {
+    debug_assert!(
+        row.iter()
+            .flatten()
+            .all(|&b| (b as usize) < 16 * terms.len())
+    );
+    let base = terms.as_ptr().cast::<u8>();
+    // SAFETY: in bounds by the caller's contract; 16-byte aligned, as
+    // `terms` is.
+    let t = |b: u32| unsafe { *base.add(b as usize).cast::<Vec3A>() };
+    let [p, m] = row;
+    ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3]))) - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
 }
 
 /// A vertex's padded gather of the spring terms: its start springs' terms
