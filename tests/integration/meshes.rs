@@ -8,6 +8,7 @@ use bevy_cloth::prelude::*;
 use bevy_cloth::render::ClothRenderPlugin;
 
 use crate::common::{app_with, run_steps};
+use crate::mesh_order::{grid_mesh_numbered, shuffled};
 
 fn with_meshes(app: &mut App) {
     app.init_asset::<Mesh>();
@@ -165,34 +166,9 @@ fn a_mesh_that_cannot_be_a_cloth_is_reported_not_a_panic() {
 fn a_mesh_in_scattered_order_is_renumbered_and_written_back_in_its_own() {
     // A 12×12 grid mesh whose row-major vertex v is mesh vertex perm[v].
     let n = 12u32;
-    let mut perm: Vec<u32> = (0..n * n).collect();
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    for i in (1..perm.len()).rev() {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        perm.swap(i, (seed % (i as u64 + 1)) as usize);
-    }
-    let mut positions = vec![[0.0f32; 3]; (n * n) as usize];
-    for j in 0..n {
-        for i in 0..n {
-            positions[perm[(j * n + i) as usize] as usize] = [i as f32, 0.0, j as f32];
-        }
-    }
+    let perm = shuffled(n * n);
+    let (positions, mesh) = grid_mesh_numbered(n, |v| perm[v as usize]);
     let at = |i: u32, j: u32| perm[(j * n + i) as usize];
-    let mut indices = Vec::new();
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            indices.extend([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
-            indices.extend([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
-        }
-    }
-    let mesh = Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
-    .with_inserted_indices(Indices::U32(indices));
     // Pinned along z = 0, given as mesh indices.
     let edge: Vec<u32> = (0..n).map(|i| at(i, 0)).collect();
     let mut app = mesh_app();
