@@ -27,7 +27,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{for_chunks, for_chunks2, padded_gather, spring_terms, stiffness_coeffs};
+use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
 use super::{
     ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
 };
@@ -371,7 +371,6 @@ impl ImplicitWorkspace {
 struct VertexPass<'a> {
     data: &'a Gather,
     adjacency: &'a Adjacency,
-    padded: Option<&'a [[[u32; 4]; 2]]>,
     pinned: &'a [bool],
     spheres: &'a [PenaltySphere],
 }
@@ -384,7 +383,6 @@ impl<'a> VertexPass<'a> {
         Self {
             data,
             adjacency,
-            padded: adjacency.padded(),
             pinned: model.pinned(),
             spheres,
         }
@@ -409,10 +407,10 @@ impl<'a> VertexPass<'a> {
     /// is not zeroed, but its inverse diagonal is 0).
     #[inline(always)]
     fn gradient(&self, i: usize, xi: Vec3A) -> (Vec3A, f32) {
-        let springs = match self.padded {
+        let springs = match self.data.row_bytes.get(i) {
             // Fixed length, summed as a tree: short chains of additions.
             // SAFETY: as in `ChunkPass::each`.
-            Some(padded) => unsafe { padded_sum(&padded[i], &self.data.terms) },
+            Some(row) => unsafe { padded_sum_bytes(row, &self.data.terms) },
             None => {
                 let (starts, ends) = self.adjacency.by_side(i);
                 let mut plus = Vec3A::ZERO;
@@ -492,7 +490,9 @@ impl ChunkPass<'_> {
     }
 }
 
-/// [`padded_sum`] over a row of byte offsets (`index × 16`).
+/// A vertex's padded gather of the spring terms, over its row as byte
+/// offsets (`index × 16`): its start springs' terms minus its end springs'
+/// terms, each summed as a tree (short chains of additions).
 ///
 /// # Safety
 ///
@@ -510,19 +510,6 @@ unsafe fn padded_sum_bytes(row: &[[u32; 4]; 2], terms: &[Vec3A]) -> Vec3A {
     let t = |b: u32| unsafe { *base.add(b as usize).cast::<Vec3A>() };
     let [p, m] = row;
     ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3]))) - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
-}
-
-/// A vertex's padded gather of the spring terms: its start springs' terms
-/// minus its end springs' terms (see [`padded_gather`]).
-///
-/// # Safety
-///
-/// As [`padded_gather`]'s.
-#[inline(always)]
-unsafe fn padded_sum(row: &[[u32; 4]; 2], terms: &[Vec3A]) -> Vec3A {
-    // SAFETY: the caller's contract is padded_gather's.
-    let (plus, minus) = unsafe { padded_gather(row, terms, |t| *t, |t| *t) };
-    plus - minus
 }
 
 /// Checks an iteration count and a Chebyshev setting (shared by every
