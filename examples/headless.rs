@@ -10,7 +10,8 @@
 //!
 //! Methods: the preset names of `bevy_cloth::methods::PRESETS` (`jacobi`,
 //! also `implicit`, `chebyshev`, `chebyshev-auto`, `pbd`, `symplectic`,
-//! `linear-cg`, `linear-direct`, `exact`), at their interactive settings;
+//! `linear-cg`, `linear-direct`, `pd`, `pd-anderson`, `newton`, `exact`), at
+//! their interactive settings;
 //! `--iterations` and `--rho` change them. Every method runs on every scene.
 //!
 //! - `lab` (default): the Unity lab's `n×n` cloth (10×10 units, total mass
@@ -46,7 +47,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
 
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
-[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|exact] [--n N] [--rows R] \
+[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] [--n N] [--rows R] \
 [--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
 [--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--dump FILE.csv] [--compute-threads N]";
 

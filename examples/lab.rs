@@ -23,7 +23,7 @@ use bevy_cloth::render::cloth_mesh;
 use bevy_cloth::ui::ClothResolution;
 use common::ScreenshotMode;
 
-const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|exact] \
+const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] \
 [--n N] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]

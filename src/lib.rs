@@ -87,7 +87,19 @@
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
 //! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`) or Anderson-accelerated (`pd-anderson`), factorised once | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
-//! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search | the reference | [`solver::exact`] |
+//! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search; to 1e-9 (`exact`) or on a budget of 16 iterations to 1e-5 (`newton`) | the reference | [`solver::exact`] |
+//!
+//! **Which preset for what** (from the stability map, the report and the
+//! perf page; the README has the numbers):
+//!
+//! | You want | Preset |
+//! |---|---|
+//! | the lab's look, soft cloth (`k` up to ~1e4 at 30 Hz) | `chebyshev` |
+//! | stiffer cloth at interactive cost (`k` up to 1e6 at 30 Hz) | `pd` |
+//! | nearly inextensible cloth, small to mid-size | `pd-anderson` (37 of the map's 40 cells) |
+//! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; 1.7 ms at 21²) |
+//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads |
+//! | the reference | `exact` |
 //!
 //! ## Collision
 //! - [`SphereCollider`] / [`SphereCollisionPlugin`] ([`collision`]):
@@ -235,6 +247,7 @@
 //!                                only if Φ drops); v = (x − x₀)/dt
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
+//!                                (newton: the same to 1e-5, at most 16 iterations)
 //!             (penalty spheres, planes, capsules, boxes act inside the step: forces, and stiffness in A; in pd,
 //!              projective terms with their stiffness on the matrix's diagonal)
 //!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
@@ -285,7 +298,9 @@
 //! use projective dynamics ([`ProjectiveSolver`], preset `pd`), which stays
 //! correct about a decade stiffer than Chebyshev at the same step, or its
 //! Anderson-accelerated preset `pd-anderson` for nearly inextensible cloth
-//! (see the stability map).
+//! (see the stability map). Beyond them (k = 1e7–1e8 at long steps), on
+//! small cloths, Newton on a budget ([`ExactSolver::BUDGET`], preset
+//! `newton`) is right in every cell of the map.
 //!
 //! **The linearly implicit method stopped with `SolveFailed`, or went
 //! wild.** With the assignment's exact spring blocks, compressed springs make

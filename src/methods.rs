@@ -193,7 +193,9 @@ impl Preset {
 /// for the iterative lab methods (Chebyshev with the lab's `ρ = 0.995`, or
 /// estimated), the assignment's CG (25 iterations, 1e-6), the linearly
 /// implicit methods with compression-clamped spring blocks (the
-/// assignment's exact blocks make the lab cloth's matrix indefinite), and
+/// assignment's exact blocks make the lab cloth's matrix indefinite),
+/// projective dynamics (10 Chebyshev or 20 Anderson iterations), Newton on
+/// a budget ([`ExactSolver::BUDGET`]: 16 iterations, tolerance 1e-5), and
 /// the exact method at the reference tolerance.
 pub const PRESETS: &[Preset] = &[
     Preset {
@@ -239,6 +241,10 @@ pub const PRESETS: &[Preset] = &[
             PD_ANDERSON_ITERATIONS,
             PD_ANDERSON_WINDOW,
         )),
+    },
+    Preset {
+        label: "Newton on a budget (stiff cloth)",
+        method: AnyMethod::Exact(ExactSolver::BUDGET),
     },
     Preset {
         label: "Exact implicit (Newton)",
@@ -325,8 +331,8 @@ mod tests {
             assert_eq!(p.name().parse::<AnyMethod>(), Ok(p.method));
         }
         assert_eq!(preset("implicit").unwrap().name(), "jacobi");
-        let err = "newton".parse::<AnyMethod>().unwrap_err().to_string();
-        assert!(err.contains("unknown method 'newton'") && err.contains("linear-direct"));
+        let err = "verlet".parse::<AnyMethod>().unwrap_err().to_string();
+        assert!(err.contains("unknown method 'verlet'") && err.contains("linear-direct"));
         // One name per preset.
         let mut names = preset_names();
         names.sort_unstable();

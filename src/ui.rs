@@ -633,7 +633,7 @@ fn stats_ui(
                     "{text}: not converged (raise iterations, or use {})",
                     match stats.method {
                         "pd" => "pd-anderson",
-                        "pd-anderson" => "exact",
+                        "pd-anderson" => "newton",
                         _ => "pd",
                     }
                 ),

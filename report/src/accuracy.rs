@@ -401,14 +401,15 @@ fn scene_report(
 
     // Trajectories from rest.
     // Every preset but PBD (a different problem) and the exact method (the
-    // reference itself).
+    // reference itself); Newton on a budget at its preset's setting.
     let mut trajectory_methods = Vec::new();
     for preset in PRESETS {
         let method = preset.method;
-        if matches!(method, AnyMethod::Pbd(_) | AnyMethod::Exact(_)) {
+        if matches!(method, AnyMethod::Pbd(_)) || method == EXACT {
             continue;
         }
         match method.iterations() {
+            Some(_) if matches!(method, AnyMethod::Exact(_)) => trajectory_methods.push(method),
             Some(_) => trajectory_methods.extend(
                 config
                     .trajectory_iterations

@@ -20,6 +20,7 @@ use crate::scenarios::{
 };
 use bevy_cloth::methods::AnyMethod;
 use bevy_cloth::model::ClothState;
+use bevy_cloth::solver::exact::ExactSolver;
 use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, StepParams};
 
 /// What the stability map sweeps.
@@ -253,7 +254,8 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
 
     convergence_section(&mut md, &labels, config, &grid);
 
-    // 2. Resolution, iterative methods, lab k and dt, mass 1 per vertex.
+    // 2. Resolution, iterative methods and Newton on a budget, lab k and dt,
+    // mass 1 per vertex.
     let iterative: Vec<AnyMethod> = methods
         .iter()
         .copied()
@@ -261,7 +263,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
             matches!(
                 m,
                 AnyMethod::Implicit(_) | AnyMethod::Projective(_) | AnyMethod::Pbd(_)
-            )
+            ) || *m == AnyMethod::Exact(ExactSolver::BUDGET)
         })
         .collect();
     writeln!(
@@ -364,7 +366,9 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
          Each case runs `min(⌈1 s/dt⌉, 300)` steps. Methods run at their interactive settings: \
          32 iterations (Jacobi, Chebyshev with the lab's ρ = 0.995 or with ρ estimated, PBD), CG \
          with 25 iterations, the linearly implicit methods with compression-clamped and with exact \
-         (`exact K`) spring blocks.",
+         (`exact K`) spring blocks, projective dynamics with 10 Chebyshev or 20 Anderson \
+         iterations, Newton on a budget (`newton`: at most 16 iterations to a relative gradient \
+         of 1e-5).",
         crate::chart::machine(),
         started.elapsed().as_secs_f64()
     )

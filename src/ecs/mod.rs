@@ -130,16 +130,17 @@ impl std::fmt::Display for ClothNotConverged {
 impl ClothNotConverged {
     /// What to do about it, from the stability map: more iterations, a
     /// smaller stiffness or time step, or a method that stays right at
-    /// higher stiffness (`pd`; beyond it, the direct `linear-direct` or
-    /// `exact` on small cloths).
+    /// higher stiffness (`pd`, then `pd-anderson`; beyond them, Newton on a
+    /// budget, `newton`, on small cloths).
     pub fn remedy(&self) -> &'static str {
         if self.method == "pd" {
             "raise the iterations, lower the stiffness or the time step, or use 'pd-anderson' \
-             (Anderson-accelerated, for stiff cloth), or 'exact' (Newton, right at any \
-             stiffness, for small cloths)"
+             (Anderson-accelerated, for stiff cloth), or 'newton' (Newton on a budget, right \
+             at any stiffness of the stability map, for small cloths)"
         } else if self.method == "pd-anderson" {
-            "raise the iterations, lower the stiffness or the time step, or use 'exact' \
-             (Newton with direct solves, right at any stiffness, for small cloths)"
+            "raise the iterations, lower the stiffness or the time step, or use 'newton' \
+             (Newton with direct solves on a budget, right at any stiffness of the stability \
+             map, for small cloths)"
         } else {
             "raise the iterations, lower the stiffness or the time step, or use the 'pd' method \
              (projective dynamics), which stays right about a decade stiffer"

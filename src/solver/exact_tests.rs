@@ -272,3 +272,65 @@ fn estimated_rho_accelerates_the_lab_step() {
         assert!(auto < 0.5 * jacobi, "K = {k}: auto {auto} jacobi {jacobi}");
     }
 }
+
+/// Runs `steps` steps of `config` from rest on the lab cloth with `params`.
+fn run_from_rest(
+    model: &ClothModel,
+    params: &StepParams,
+    config: &ExactSolver,
+    steps: usize,
+) -> (ClothState, Vec<u32>) {
+    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+    let mut ws = ExactWorkspace::default();
+    let iterations = (0..steps)
+        .map(|_| {
+            Method::step(config, model, &mut state, params, &[], &mut ws)
+                .unwrap()
+                .iterations
+        })
+        .collect();
+    (state, iterations)
+}
+
+#[test]
+fn newton_on_a_budget_follows_the_exact_run_and_spends_its_budget_only_on_stiff_cloth() {
+    assert_eq!(ExactSolver::BUDGET.name(), "newton");
+    assert_eq!(ExactSolver::REFERENCE.name(), "exact");
+    let model = ClothBuilder::lab().build().unwrap();
+    let rest = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    // The lab's springs (k = 8000 at dt = 1/30) and a stiff cloth at a long
+    // step (k = 1e7 at dt = 0.1, where the interactive iterative methods
+    // fall short: the stability map).
+    let stiff = StepParams {
+        stiffness: crate::solver::SpringStiffness::uniform(1e7),
+        dt: 0.1,
+        ..StepParams::LAB
+    };
+    let mut spent = Vec::new();
+    // After 10 steps the sheet has fallen; the budgeted run is where the
+    // exact one is, to a thousandth of how far it moved on the lab's springs
+    // and to 5 % on the nearly rigid stiff sheet (whose fall amplifies each
+    // step's 1e-5 tolerance; the map's verdict allows 10 % of the drop).
+    for (params, bound) in [(StepParams::LAB, 1e-3), (stiff, 0.05)] {
+        let (exact, _) = run_from_rest(&model, &params, &ExactSolver::REFERENCE, 10);
+        let (newton, iterations) = run_from_rest(&model, &params, &ExactSolver::BUDGET, 10);
+        let error = step_error(&newton.positions, &exact.positions, &rest.positions);
+        assert!(error < bound, "{params:?}: error {error}");
+        assert!(iterations.iter().all(|&k| k <= 16), "{iterations:?}");
+        spent.push(iterations.iter().sum::<u32>());
+    }
+    // Soft springs: a few iterations a step; stiff ones: more, within budget.
+    assert!(spent[0] <= 30, "{spent:?}");
+    assert!(spent[1] > spent[0], "{spent:?}");
+    // What the budget buys there: Anderson-accelerated projective dynamics
+    // at its stiff-cloth setting stays far above the sheet (it locks).
+    let (exact, _) = run_from_rest(&model, &stiff, &ExactSolver::REFERENCE, 10);
+    let mut pd = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let mut ws = Default::default();
+    let anderson = crate::solver::projective::ProjectiveSolver::anderson(20, 5);
+    for _ in 0..10 {
+        Method::step(&anderson, &model, &mut pd, &stiff, &[], &mut ws).unwrap();
+    }
+    let pd_error = step_error(&pd.positions, &exact.positions, &rest.positions);
+    assert!(pd_error > 0.2, "pd-anderson error {pd_error}");
+}

@@ -14,7 +14,7 @@
 //! | [`SymplecticSolver`](symplectic::SymplecticSolver) | symplectic Euler (`A = M`) | [`symplectic`] | the assignment's first stage |
 //! | [`LinearImplicitSolver`](linear::LinearImplicitSolver) | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear`] | the assignment |
 //! | [`ProjectiveSolver`](projective::ProjectiveSolver) | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev-accelerated | [`projective`] | Liu et al. 2013, Wang 2015 |
-//! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search | [`exact`] | the reference |
+//! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search (to 1e-9, or on a budget: `newton`) | [`exact`] | the reference |
 //!
 //! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
 //! inside every step: as forces with their stiffness in the linear system

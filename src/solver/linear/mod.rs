@@ -340,7 +340,7 @@ impl LinearWorkspace {
             self.scratch = vec![0.0; n];
             self.inv_diag = vec![0.0; n];
             self.system = Some(system);
-            self.cholesky.reset();
+            self.cholesky = SparseCholesky::for_block_hessian();
             self.memory = None;
             self.pattern_builds += 1;
         }
