@@ -634,6 +634,7 @@ fn stats_ui(
                     match stats.method {
                         "pd" => "pd-anderson",
                         "pd-anderson" => "newton",
+                        "newton" | "exact" => "a smaller time step",
                         _ => "pd",
                     }
                 ),

@@ -137,6 +137,9 @@ impl ClothNotConverged {
             "raise the iterations, lower the stiffness or the time step, or use 'pd-anderson' \
              (Anderson-accelerated, for stiff cloth), or 'newton' (Newton on a budget, right \
              at any stiffness of the stability map, for small cloths)"
+        } else if self.method == "newton" || self.method == "exact" {
+            "raise Newton's iteration cap, or lower the stiffness or the time step ('exact' \
+             iterates up to 100 times, to a relative gradient of 1e-9)"
         } else if self.method == "pd-anderson" {
             "raise the iterations, lower the stiffness or the time step, or use 'newton' \
              (Newton with direct solves on a budget, right at any stiffness of the stability \

@@ -334,3 +334,66 @@ fn newton_on_a_budget_follows_the_exact_run_and_spends_its_budget_only_on_stiff_
     let pd_error = step_error(&pd.positions, &exact.positions, &rest.positions);
     assert!(pd_error > 0.2, "pd-anderson error {pd_error}");
 }
+
+#[test]
+fn newton_reports_how_far_it_stopped_from_the_minimiser() {
+    use crate::solver::CONVERGENCE_TOLERANCE;
+    let model = ClothBuilder::lab().build().unwrap();
+    let error = |config: ExactSolver, params: &StepParams, steps: usize| {
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = ExactWorkspace::default();
+        let mut last = None;
+        for _ in 0..steps {
+            last = Method::step(&config, &model, &mut state, params, &[], &mut ws)
+                .unwrap()
+                .relative_error;
+        }
+        last.expect("Newton reports a relative error")
+    };
+    let stiff = StepParams {
+        stiffness: crate::solver::SpringStiffness::uniform(1e7),
+        dt: 0.1,
+        ..StepParams::LAB
+    };
+    // Converged: next to nothing left, on the lab's springs and stiff ones.
+    for params in [StepParams::LAB, stiff] {
+        for config in [ExactSolver::REFERENCE, ExactSolver::BUDGET] {
+            let e = error(config, &params, 5);
+            assert!(e < 1e-3, "{config:?} {params:?}: {e}");
+        }
+    }
+    // One Newton iteration a step on the stiff cloth stops far from the
+    // minimiser. The estimate follows the true distance (never below half
+    // of it here) and flags the worst steps as not converged.
+    let one = ExactSolver {
+        max_iterations: 1,
+        ..ExactSolver::BUDGET
+    };
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let (mut ws, mut exact_ws) = (ExactWorkspace::default(), ExactWorkspace::default());
+    let mut largest = 0.0f32;
+    for step in 0..6 {
+        let start = state.clone();
+        let mut exact = state.clone();
+        Method::step(
+            &ExactSolver::REFERENCE,
+            &model,
+            &mut exact,
+            &stiff,
+            &[],
+            &mut exact_ws,
+        )
+        .unwrap();
+        let estimate = Method::step(&one, &model, &mut state, &stiff, &[], &mut ws)
+            .unwrap()
+            .relative_error
+            .unwrap();
+        let truth = step_error(&state.positions, &exact.positions, &start.positions);
+        assert!(
+            estimate.is_finite() && f64::from(estimate) >= 0.5 * truth,
+            "step {step}: estimate {estimate}, true {truth}"
+        );
+        largest = largest.max(estimate);
+    }
+    assert!(largest > CONVERGENCE_TOLERANCE, "{largest}");
+}

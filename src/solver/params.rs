@@ -170,9 +170,10 @@ pub struct StepReport {
     /// How far the step's result is from the exact implicit-Euler solution
     /// of the same step, relative to how far the step moved the cloth: the
     /// iterative methods' convergence measure (see
-    /// [`ConvergenceSums`](super::ConvergenceSums)). `None` for methods that
-    /// do not minimise the implicit-Euler objective (PBD, symplectic Euler)
-    /// or solve it directly.
+    /// [`ConvergenceSums`](super::ConvergenceSums); Newton estimates it
+    /// from its last step). `None` for methods that do not minimise the
+    /// implicit-Euler objective (PBD, symplectic Euler) or take one linear
+    /// solve for it (linearly implicit Euler).
     pub relative_error: Option<f32>,
 }
 
