@@ -218,6 +218,8 @@ impl ClothParams {
             parallel: self.parallel,
             // The fastest the CPU has: every level gives the same bits.
             simd: crate::solver::Simd::Auto,
+            // The structure-of-arrays kernels wherever the cloth is a grid.
+            stencil: true,
         }
     }
 

@@ -4,6 +4,7 @@
 use bevy::math::Vec3;
 
 use super::ClothBuildError;
+use crate::solver::stencil::Stencil;
 
 /// What a spring models. Each kind has its own stiffness in
 /// [`SpringStiffness`](crate::solver::SpringStiffness).
@@ -193,6 +194,10 @@ pub struct ClothTopology {
     springs: Vec<Spring>,
     adjacency: Adjacency,
     kind_counts: [usize; 3],
+    /// The springs as offset families, when they form a stencil (a grid
+    /// numbered row by row): what the implicit iteration's
+    /// structure-of-arrays kernels run on.
+    stencil: Option<Stencil>,
 }
 
 impl ClothTopology {
@@ -254,12 +259,14 @@ impl ClothTopology {
         for s in &springs {
             kind_counts[s.kind as usize] += 1;
         }
+        let stencil = Stencil::build(n, &springs);
         Ok(Self {
             rest_positions,
             triangles,
             springs,
             adjacency,
             kind_counts,
+            stencil,
         })
     }
 
@@ -291,6 +298,11 @@ impl ClothTopology {
     #[inline]
     pub fn adjacency(&self) -> &Adjacency {
         &self.adjacency
+    }
+
+    /// The springs as offset families, if they form a stencil.
+    pub(crate) fn stencil(&self) -> Option<&Stencil> {
+        self.stencil.as_ref()
     }
 
     /// How many springs of each kind, in [`SpringKind::ALL`] order.

@@ -31,6 +31,7 @@ use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
 use super::{
     ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
 };
+use super::stencil::{StencilWorkspace, Update, VertexData};
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
 
@@ -200,8 +201,25 @@ impl Method for ImplicitSolver {
                 1.0 / ws.gather.base_diag[i]
             };
         }
-        if config.chebyshev.is_some() {
-            ws.x_prev.copy_from_slice(x);
+        // The structure-of-arrays kernels where the springs form a stencil.
+        let stencil = model.topology().stencil().filter(|_| params.stencil);
+        let data = VertexData {
+            mass_term: &ws.gather.mass_term,
+            inv_diag: &ws.gather.inv_diag,
+            base_diag: &ws.gather.base_diag,
+            pinned,
+            spheres,
+        };
+        match stencil {
+            Some(stencil) => ws.stencil.load(
+                stencil,
+                &ws.coeffs,
+                x,
+                &ws.gather.target,
+                config.chebyshev.is_some(),
+            ),
+            None if config.chebyshev.is_some() => ws.x_prev.copy_from_slice(x),
+            None => {}
         }
 
         // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
@@ -214,77 +232,72 @@ impl Method for ImplicitSolver {
         };
         ws.update_norms.clear();
         for k in 0..config.iterations {
-            spring_terms(
-                params,
-                model,
-                x,
-                &ws.coeffs,
-                &mut ws.gather.terms[..springs.len()],
-            );
-            let pass = VertexPass::new(&ws.gather, model, spheres);
-            // A pinned vertex has a zero inverse diagonal, so neither update
-            // moves it (Chebyshev: its iterate and the one before are equal).
-            match config.chebyshev {
-                None => {
-                    let pass = &pass;
-                    for_chunks(params.parallel, x, move |start, x| {
-                        pass.chunk(start, x.len())
-                            .each(x, |_, xi, step| *xi -= step);
-                    });
-                }
+            // A pinned vertex has a zero inverse diagonal, so no update moves
+            // it (Chebyshev: its iterate and the one before are equal).
+            let update = match config.chebyshev {
+                None => Update::Jacobi,
                 Some(kind) => {
                     if kind == Rho::Auto && k == delay {
                         rho = rho_from_update_norms(&ws.update_norms);
                     }
                     omega = chebyshev_omega(k, delay, rho, omega);
-                    // Each chunk updates its vertices and the previous iterate,
-                    // and sums its squared update norms; the sums are added in
-                    // chunk order, so the total is the same on any thread count.
-                    // Copies, so the loop keeps them in registers.
-                    let (measure, omega, pass) = (k < delay, omega, &pass);
-                    for_chunks2(
-                        params.parallel,
-                        x,
-                        &mut ws.x_prev,
-                        &mut ws.chunk_sums,
-                        move |start, x, prev| {
-                            let prev = &mut prev[..x.len()];
-                            let mut update = 0.0f64;
-                            pass.chunk(start, x.len()).each(x, |j, xi, step| {
-                                let x_hat = *xi - step;
-                                let before = prev[j];
-                                prev[j] = *xi;
-                                *xi = omega * (x_hat - before) + before;
-                                if measure {
-                                    update += f64::from(step.length_squared());
-                                }
-                            });
-                            update
-                        },
-                    );
-                    if k < delay {
-                        let update: f64 = ws.chunk_sums.iter().sum();
-                        ws.update_norms.push(update.sqrt());
+                    Update::Chebyshev {
+                        omega,
+                        measure: k < delay,
                     }
                 }
+            };
+            let squared_steps = match stencil {
+                Some(_) => {
+                    ws.stencil.spring_pass(params.simd, params.parallel);
+                    ws.stencil
+                        .vertex_pass(params.simd, params.parallel, &data, update)
+                }
+                None => {
+                    spring_terms(
+                        params,
+                        model,
+                        x,
+                        &ws.coeffs,
+                        &mut ws.gather.terms[..springs.len()],
+                    );
+                    let pass = VertexPass::new(&ws.gather, model, spheres);
+                    general_vertex_pass(&pass, params.parallel, x, &mut ws.x_prev, &mut ws.chunk_sums, update)
+                }
+            };
+            if let Update::Chebyshev { measure: true, .. } = update {
+                ws.update_norms.push(squared_steps.sqrt());
             }
         }
 
         // Residual at the final iterate: the gradient over free vertices.
-        spring_terms(
-            params,
-            model,
-            x,
-            &ws.coeffs,
-            &mut ws.gather.terms[..springs.len()],
-        );
-        let pass = VertexPass::new(&ws.gather, model, spheres);
+        ws.grad.resize(n, Vec3A::ZERO);
+        match stencil {
+            Some(_) => {
+                ws.stencil.spring_pass(params.simd, params.parallel);
+                ws.stencil.store(x);
+                ws.stencil.gradient(&data, &mut ws.grad);
+            }
+            None => {
+                spring_terms(
+                    params,
+                    model,
+                    x,
+                    &ws.coeffs,
+                    &mut ws.gather.terms[..springs.len()],
+                );
+                let pass = VertexPass::new(&ws.gather, model, spheres);
+                for (i, g) in ws.grad.iter_mut().enumerate() {
+                    *g = pass.gradient(i, x[i]).0;
+                }
+            }
+        }
         let mut residual = 0.0f32;
         let mut convergence = ConvergenceSums::default();
         let masses = model.masses();
         for i in 0..n {
             if !pinned[i] {
-                let g = pass.gradient(i, x[i]).0;
+                let g = ws.grad[i];
                 residual += g.length_squared();
                 // x̃ = x_start + dt·v (v damped): the step's motion is x − x_start.
                 let motion = x[i] - (ws.x_tilde[i] - dt * v[i]);
@@ -308,6 +321,47 @@ impl Method for ImplicitSolver {
     }
 }
 
+/// One iteration's vertex pass of the general kernels over the spring terms
+/// `pass` reads, in chunks; returns the sum of squared steps when `update`
+/// measures them (added in chunk order: the same on any thread count).
+fn general_vertex_pass(
+    pass: &VertexPass<'_>,
+    parallel: bool,
+    x: &mut [Vec3A],
+    x_prev: &mut [Vec3A],
+    chunk_sums: &mut Vec<f64>,
+    update: Update,
+) -> f64 {
+    match update {
+        Update::Jacobi => {
+            for_chunks(parallel, x, move |start, x| {
+                pass.chunk(start, x.len())
+                    .each(x, |_, xi, step| *xi -= step);
+            });
+            0.0
+        }
+        Update::Chebyshev { omega, measure } => {
+            // Each chunk updates its vertices and the previous iterate, and
+            // sums its squared update norms.
+            for_chunks2(parallel, x, x_prev, chunk_sums, move |start, x, prev| {
+                let prev = &mut prev[..x.len()];
+                let mut update = 0.0f64;
+                pass.chunk(start, x.len()).each(x, |j, xi, step| {
+                    let x_hat = *xi - step;
+                    let before = prev[j];
+                    prev[j] = *xi;
+                    *xi = omega * (x_hat - before) + before;
+                    if measure {
+                        update += f64::from(step.length_squared());
+                    }
+                });
+                update
+            });
+            chunk_sums.iter().sum()
+        }
+    }
+}
+
 /// Scratch buffers of the implicit solver, sized on first use.
 #[derive(Clone, Debug, Default)]
 pub struct ImplicitWorkspace {
@@ -321,6 +375,10 @@ pub struct ImplicitWorkspace {
     x_prev: Vec<Vec3A>,
     /// Per chunk of vertices: the sum of squared updates.
     chunk_sums: Vec<f64>,
+    /// The gradient at the final iterate.
+    grad: Vec<Vec3A>,
+    /// The structure-of-arrays state of the stencil kernels.
+    stencil: StencilWorkspace,
 }
 
 /// The per-step vertex data and per-iteration spring terms the vertex pass

@@ -43,6 +43,7 @@ pub mod params;
 pub mod pbd;
 pub mod projective;
 pub mod simd;
+pub(crate) mod stencil;
 mod supernodal;
 pub mod symplectic;
 

@@ -84,6 +84,14 @@ pub struct StepParams {
     /// [`Simd::Auto`](super::Simd::Auto): the fastest this CPU has). Every
     /// choice gives the same bits; this only trades speed.
     pub simd: super::Simd,
+    /// Whether a cloth whose springs form a stencil (a grid numbered row by
+    /// row, as every builder's) runs the implicit iteration's
+    /// structure-of-arrays kernels (default `true`; about 2.5–3× faster on
+    /// the lab cloth: see `docs/perf.md`). They agree with the general
+    /// kernels within `f32` rounding, not bitwise: a vertex sums its
+    /// springs in another order. `false` runs the general kernels, for
+    /// comparison.
+    pub stencil: bool,
 }
 
 impl StepParams {
@@ -96,6 +104,7 @@ impl StepParams {
         gravity: Vec3::new(0.0, -9.8, 0.0),
         parallel: true,
         simd: super::Simd::Auto,
+        stencil: true,
     };
 
     /// Checks every parameter; a solver calls this before it touches state.

@@ -1,0 +1,600 @@
+//! The implicit iteration on structure-of-arrays state, for cloths whose
+//! springs form a stencil: every spring `(a, a + o)` belongs to one of a few
+//! offset families `o` (a grid numbered row by row: the lab's triangle grid
+//! has three, `1`, `W` and `W + 1`; the assignment's cloth six).
+//!
+//! Then the spring pass needs no indices: for a family, the springs' first
+//! ends are the positions `x[0 .. n − o]` and their second ends
+//! `x[o .. n]`, two contiguous runs, so with positions stored as three
+//! `f32` arrays (`x`, `y`, `z`) one SIMD register holds 4, 8 or 16 springs
+//! loaded straight from memory — no transposes, no gathers. The vertex
+//! pass is contiguous too: vertex `i` adds its family-`f` term at `i`
+//! (it starts the spring) and subtracts the one at `i − o` (it ends it).
+//! A family's missing springs (a row's last vertex has no right
+//! neighbour) have zero coefficients, so their terms are zero.
+//!
+//! Each spring's term is the same IEEE operations in the same order as the
+//! general pass ([`spring_products`](super::simd::spring_products)): the
+//! same bits per spring. A vertex sums its springs family by family rather
+//! than in its adjacency's order, so a step agrees with the general path
+//! within `f32` rounding, not bitwise.
+//!
+//! The kernels are plain loops over slices, compiled three times — for the
+//! baseline (SSE2 on x86-64, NEON on aarch64), for AVX2 + FMA and for
+//! AVX-512F, through `#[target_feature]` functions — and the compiler
+//! vectorises each at its width; the level is [`StepParams::simd`]'s,
+//! chosen at run time ([`Simd::resolve`]). Every operation is elementwise
+//! and none is fused (Rust never contracts `a·b + c`), so **every level
+//! gives the same bits**. Written as loops rather than with `pulp`: the
+//! compiler's vectorisation of these streams is what a hand-written
+//! `f32s` kernel would be (a scratch A/B on the lab step: 30.3 µs at AVX2
+//! against 88 µs for the general path), and the loops stay readable.
+//!
+//! [`StepParams::simd`]: super::StepParams::simd
+
+use std::collections::BTreeMap;
+
+use bevy::math::Vec3A;
+
+use super::kernels::{CHUNK, parallel_pool};
+use super::simd::Simd;
+use crate::collision::PenaltySphere;
+use crate::model::Spring;
+
+/// At most this many offset families: more, and the cloth is not a grid
+/// the stencil is worth it for (each family costs a pass over all
+/// vertices).
+pub(crate) const MAX_FAMILIES: usize = 8;
+
+/// No spring of this family starts at the vertex.
+const NONE: u32 = u32::MAX;
+
+/// A cloth's springs as offset families (see the [module docs](self)), or
+/// nothing when they do not form a stencil.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Stencil {
+    /// Per family, in increasing offset: the offset `o` and, per vertex
+    /// `a < n − o`, the index of the spring `(a, a + o)` or [`NONE`].
+    families: Vec<(usize, Vec<u32>)>,
+}
+
+impl Stencil {
+    /// The families of `springs` over `n` vertices, or `None` when there
+    /// are more than [`MAX_FAMILIES`] offsets or the families are less than
+    /// half full (most of the dense passes would be wasted).
+    pub(crate) fn build(n: usize, springs: &[Spring]) -> Option<Self> {
+        if springs.is_empty() {
+            return None;
+        }
+        let mut by_offset: BTreeMap<usize, Vec<u32>> = BTreeMap::new();
+        for (e, s) in springs.iter().enumerate() {
+            let (a, o) = (s.a as usize, (s.b - s.a) as usize);
+            if !by_offset.contains_key(&o) && by_offset.len() == MAX_FAMILIES {
+                return None;
+            }
+            let starts = by_offset.entry(o).or_insert_with(|| vec![NONE; n - o]);
+            starts[a] = e as u32;
+        }
+        if 2 * springs.len() < by_offset.len() * n {
+            return None;
+        }
+        Some(Self {
+            families: by_offset.into_iter().collect(),
+        })
+    }
+
+    /// How many families.
+    pub(crate) fn families(&self) -> usize {
+        self.families.len()
+    }
+
+    /// The largest offset.
+    fn max_offset(&self) -> usize {
+        self.families.last().map_or(0, |f| f.0)
+    }
+}
+
+/// What one vertex pass does with each vertex's step `g/diag`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Update {
+    /// Plain Jacobi: `x ← x − step`.
+    Jacobi,
+    /// Chebyshev: `x ← ω(x − step − x_prev) + x_prev`, `x_prev ← x`;
+    /// `measure` sums the squared steps (for [`Rho::Auto`](super::Rho)).
+    Chebyshev { omega: f32, measure: bool },
+}
+
+/// The per-vertex data of a step that the vertex pass reads besides the
+/// stencil's own arrays.
+pub(crate) struct VertexData<'a> {
+    /// `m/dt²`.
+    pub mass_term: &'a [f32],
+    /// `1/(m/dt² + Σk)`, 0 for a pinned vertex.
+    pub inv_diag: &'a [f32],
+    /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
+    pub base_diag: &'a [f32],
+    pub pinned: &'a [bool],
+    pub spheres: &'a [PenaltySphere],
+}
+
+/// The stencil iteration's arrays: structure-of-arrays positions, previous
+/// iterate and target, per-family coefficients and terms. Sized on first
+/// use, reused after.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct StencilWorkspace {
+    n: usize,
+    /// Zeros before each term array: the vertex pass reads family `f`'s
+    /// term at `i − o` for every `i`.
+    pad: usize,
+    offsets: Vec<usize>,
+    /// Per family, per vertex `a < n − o`: `[α, β]` of its spring (zeros
+    /// where there is none); `n` entries per family.
+    alpha: Vec<f32>,
+    beta: Vec<f32>,
+    /// `[x…, y…, z…]`, `n` each.
+    x: Vec<f32>,
+    prev: Vec<f32>,
+    target: Vec<f32>,
+    /// Per family and component: `pad` zeros, then `n` terms.
+    terms: Vec<f32>,
+    /// Per chunk of vertices: the sum of squared steps.
+    chunk_sums: Vec<f64>,
+}
+
+/// Vertices per block of the vertex pass: its sums live in stack arrays.
+const BLOCK: usize = 128;
+
+impl StencilWorkspace {
+    /// Loads a step: the coefficients from the per-spring `coeffs`, the
+    /// positions `x` and the targets, into the structure-of-arrays state.
+    pub(crate) fn load(
+        &mut self,
+        stencil: &Stencil,
+        coeffs: &[[f32; 2]],
+        x: &[Vec3A],
+        target: &[Vec3A],
+        chebyshev: bool,
+    ) {
+        let n = x.len();
+        let families = stencil.families();
+        self.n = n;
+        self.pad = stencil.max_offset();
+        self.offsets.clear();
+        self.offsets.extend(stencil.families.iter().map(|f| f.0));
+        self.alpha.clear();
+        self.beta.clear();
+        for (_, starts) in &stencil.families {
+            for &e in starts {
+                let [a, b] = if e == NONE {
+                    [0.0; 2]
+                } else {
+                    coeffs[e as usize]
+                };
+                self.alpha.push(a);
+                self.beta.push(b);
+            }
+            // Past `n − o` no spring starts.
+            let missing = n - starts.len();
+            self.alpha.extend(std::iter::repeat_n(0.0, missing));
+            self.beta.extend(std::iter::repeat_n(0.0, missing));
+        }
+        to_soa(x, &mut self.x);
+        to_soa(target, &mut self.target);
+        if chebyshev {
+            self.prev.clone_from(&self.x);
+        }
+        let stride = self.pad + n;
+        // The pads must read as zero; the spring pass writes every term.
+        self.terms.clear();
+        self.terms.resize(families * 3 * stride, 0.0);
+    }
+
+    /// The positions back into `x`.
+    pub(crate) fn store(&self, x: &mut [Vec3A]) {
+        let n = self.n;
+        let (px, py, pz) = (&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]);
+        for (i, xi) in x[..n].iter_mut().enumerate() {
+            *xi = Vec3A::new(px[i], py[i], pz[i]);
+        }
+    }
+
+    /// Every spring's term `d·(α − β/l)` at the current positions, at
+    /// `simd`'s level, in vertex chunks (in parallel when `parallel` allows).
+    pub(crate) fn spring_pass(&mut self, simd: Simd, parallel: bool) {
+        let (n, pad) = (self.n, self.pad);
+        let stride = pad + n;
+        let level = simd.resolve();
+        let x = [&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]];
+        let (alpha, beta, offsets) = (&self.alpha, &self.beta, &self.offsets);
+        // Per family and component, its terms in vertex chunks.
+        let mut parts: [_; 3 * MAX_FAMILIES] = chunked(&mut self.terms, stride, pad);
+        let work = (0..n.div_ceil(CHUNK)).map(|c| (c * CHUNK, next_chunks(&mut parts)));
+        let run = |(start, mut out): (usize, [&mut [f32]; 3 * MAX_FAMILIES])| {
+            let (out, _) = out.as_chunks_mut::<3>();
+            for (f, (&o, [tx, ty, tz])) in offsets.iter().zip(out).enumerate() {
+                let len = tx.len();
+                // Springs start at `a < n − o`.
+                let m = (n - o).saturating_sub(start).min(len);
+                let coeff = f * n + start..f * n + start + m;
+                let ends = |c: usize| (&x[c][start..start + m], &x[c][start + o..start + o + m]);
+                springs(
+                    level,
+                    [ends(0), ends(1), ends(2)],
+                    (&alpha[coeff.clone()], &beta[coeff]),
+                    [&mut tx[..m], &mut ty[..m], &mut tz[..m]],
+                );
+                for t in [tx, ty, tz] {
+                    t[m..].fill(0.0);
+                }
+            }
+        };
+        run_chunks(parallel, n, work, run);
+    }
+
+    /// One vertex pass: each vertex's gradient `m/dt²(x − target) + Σ
+    /// terms` (penalty contacts included), its diagonal-Newton step, and
+    /// `update` applied. Returns the sum of squared steps when `update`
+    /// measures them (in chunk order: the same on any thread count).
+    pub(crate) fn vertex_pass(
+        &mut self,
+        simd: Simd,
+        parallel: bool,
+        data: &VertexData<'_>,
+        update: Update,
+    ) -> f64 {
+        let n = self.n;
+        let level = simd.resolve();
+        let terms = Terms {
+            data: &self.terms,
+            stride: self.pad + n,
+            pad: self.pad,
+            offsets: &self.offsets,
+        };
+        let target = [
+            &self.target[..n],
+            &self.target[n..2 * n],
+            &self.target[2 * n..3 * n],
+        ];
+        let chebyshev = matches!(update, Update::Chebyshev { .. });
+        let mut xs: [_; 3] = chunked(&mut self.x, n, 0);
+        // Without Chebyshev, no previous iterate: empty slices.
+        let prev = if chebyshev { &mut self.prev[..] } else { &mut [] };
+        let mut prevs: [_; 3] = chunked(prev, n, 0);
+        let chunks = n.div_ceil(CHUNK);
+        self.chunk_sums.clear();
+        self.chunk_sums.resize(chunks, 0.0);
+        let work = self.chunk_sums.iter_mut().enumerate().map(|(c, sum)| {
+            (c * CHUNK, next_chunks(&mut xs), next_chunks(&mut prevs), sum)
+        });
+        let run = |(start, x, prev, sum): (usize, [&mut [f32]; 3], [&mut [f32]; 3], &mut f64)| {
+            *sum = vertices(
+                level,
+                &Chunk {
+                    start,
+                    terms: &terms,
+                    target,
+                    data,
+                },
+                x,
+                prev,
+                update,
+            );
+        };
+        run_chunks(parallel, n, work, run);
+        self.chunk_sums.iter().sum()
+    }
+
+    /// The gradient at the current positions into `out` (after a
+    /// [`spring_pass`](Self::spring_pass) there), penalty contacts included.
+    pub(crate) fn gradient(&self, data: &VertexData<'_>, out: &mut [Vec3A]) {
+        let n = self.n;
+        let terms = Terms {
+            data: &self.terms,
+            stride: self.pad + n,
+            pad: self.pad,
+            offsets: &self.offsets,
+        };
+        let x = [&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]];
+        for (i, g) in out[..n].iter_mut().enumerate() {
+            let mut grad = [0.0f32; 3];
+            for (c, gc) in grad.iter_mut().enumerate() {
+                let t = self.target[c * n + i];
+                *gc = (x[c][i] - t) * data.mass_term[i] + terms.sum(c, i);
+            }
+            let mut gv = Vec3A::from(grad);
+            if !data.pinned[i] {
+                let xi = Vec3A::new(x[0][i], x[1][i], x[2][i]);
+                for sphere in data.spheres {
+                    if let Some(contact) = sphere.contact(xi) {
+                        gv -= contact.force;
+                    }
+                }
+            }
+            *g = gv;
+        }
+    }
+}
+
+/// The first `K` rows of `data` (each `stride` long, its first `skip`
+/// entries left out) as iterators over vertex chunks; `None` past the rows
+/// `data` has.
+fn chunked<const K: usize>(
+    data: &mut [f32],
+    stride: usize,
+    skip: usize,
+) -> [Option<std::slice::ChunksMut<'_, f32>>; K] {
+    let mut rows = data.chunks_mut(stride.max(1));
+    std::array::from_fn(|_| rows.next().map(|r| r[skip..].chunks_mut(CHUNK)))
+}
+
+/// The next chunk of every row of [`chunked`] (empty for a missing row).
+fn next_chunks<'a, const K: usize>(
+    rows: &mut [Option<std::slice::ChunksMut<'a, f32>>; K],
+) -> [&'a mut [f32]; K] {
+    std::array::from_fn(|j| rows[j].as_mut().and_then(Iterator::next).unwrap_or_default())
+}
+
+/// Runs `run` on every item of `work` (one per vertex chunk of a cloth of
+/// `n` vertices): on Bevy's compute pool when `parallel` allows (see
+/// [`parallel_pool`]), else in order. Each item owns what it writes, so
+/// the result is the same either way.
+fn run_chunks<T: Send>(
+    parallel: bool,
+    n: usize,
+    work: impl Iterator<Item = T>,
+    run: impl Fn(T) + Sync,
+) {
+    match parallel_pool(parallel, n) {
+        Some(pool) => {
+            pool.scope(|scope| {
+                let run = &run;
+                for item in work {
+                    scope.spawn(async move { run(item) });
+                }
+            });
+        }
+        None => work.for_each(run),
+    }
+}
+
+/// `[x…, y…, z…]` from `v`.
+fn to_soa(v: &[Vec3A], out: &mut Vec<f32>) {
+    out.clear();
+    out.extend(v.iter().map(|p| p.x));
+    out.extend(v.iter().map(|p| p.y));
+    out.extend(v.iter().map(|p| p.z));
+}
+
+/// The families' terms as the vertex pass reads them.
+struct Terms<'a> {
+    data: &'a [f32],
+    stride: usize,
+    pad: usize,
+    offsets: &'a [usize],
+}
+
+impl Terms<'_> {
+    /// Family `f`'s component-`c` terms from vertex `start`: the ones the
+    /// vertices start (`a`) and the ones they end (`b`, at `i − o`), `len`
+    /// each.
+    #[inline(always)]
+    fn runs(&self, f: usize, c: usize, start: usize, len: usize) -> (&[f32], &[f32]) {
+        let row = &self.data[(3 * f + c) * self.stride..(3 * f + c + 1) * self.stride];
+        let i = self.pad + start;
+        let o = self.offsets[f];
+        (&row[i..i + len], &row[i - o..i - o + len])
+    }
+
+    /// Vertex `i`'s component-`c` sum, in the vertex pass's order.
+    fn sum(&self, c: usize, i: usize) -> f32 {
+        let mut acc = 0.0;
+        for f in 0..self.offsets.len() {
+            let (a, b) = self.runs(f, c, i, 1);
+            let d = a[0] - b[0];
+            acc = if f == 0 { d } else { acc + d };
+        }
+        acc
+    }
+}
+
+/// One vertex chunk's shared inputs.
+struct Chunk<'a> {
+    start: usize,
+    terms: &'a Terms<'a>,
+    target: [&'a [f32]; 3],
+    data: &'a VertexData<'a>,
+}
+
+type Ends<'a> = [(&'a [f32], &'a [f32]); 3];
+
+/// The spring kernel at `level` (see [`springs_kernel`]).
+fn springs(level: Simd, ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
+    match level {
+        // SAFETY: `resolve` returns a level only if the CPU has its features.
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx512 => unsafe { springs_avx512(ends, coeffs, out) },
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2 => unsafe { springs_avx2(ends, coeffs, out) },
+        _ => springs_kernel(ends, coeffs, out),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma")]
+fn springs_avx2(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
+    springs_kernel(ends, coeffs, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma,avx512f")]
+fn springs_avx512(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
+    springs_kernel(ends, coeffs, out);
+}
+
+/// `t = d·(α − β/l)` for each spring of a run, `d = x_a − x_b`, `l = ‖d‖`
+/// (0 for a zero length): the general pass's operations in its order.
+#[inline(always)]
+fn springs_kernel(ends: Ends<'_>, (alpha, beta): (&[f32], &[f32]), out: [&mut [f32]; 3]) {
+    let [tx, ty, tz] = out;
+    let m = tx.len();
+    let [(ax, bx), (ay, by), (az, bz)] = ends;
+    let (ax, bx, ay, by, az, bz) = (&ax[..m], &bx[..m], &ay[..m], &by[..m], &az[..m], &bz[..m]);
+    let (alpha, beta, ty, tz) = (&alpha[..m], &beta[..m], &mut ty[..m], &mut tz[..m]);
+    for i in 0..m {
+        let (dx, dy, dz) = (ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]);
+        let l2 = (dx * dx + dy * dy) + dz * dz;
+        // Computed for every lane, then selected: no branch in the loop.
+        let raw = alpha[i] - beta[i] / l2.sqrt();
+        let scale = if l2 > 0.0 { raw } else { 0.0 };
+        tx[i] = dx * scale;
+        ty[i] = dy * scale;
+        tz[i] = dz * scale;
+    }
+}
+
+/// The vertex kernel at `level` (see [`vertices_kernel`]).
+fn vertices(
+    level: Simd,
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    match level {
+        // SAFETY: `resolve` returns a level only if the CPU has its features.
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx512 => unsafe { vertices_avx512(chunk, x, prev, update) },
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2 => unsafe { vertices_avx2(chunk, x, prev, update) },
+        _ => vertices_kernel(chunk, x, prev, update),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma")]
+fn vertices_avx2(
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    vertices_kernel(chunk, x, prev, update)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma,avx512f")]
+fn vertices_avx512(
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    vertices_kernel(chunk, x, prev, update)
+}
+
+/// One chunk of the vertex pass, in blocks of [`BLOCK`] vertices: per
+/// component, the families' terms summed in family order and the gradient
+/// `m/dt²(x − target) + Σ`; penalty contacts (per vertex, for the few in
+/// contact); then the step `g/diag` and the update.
+#[inline(always)]
+fn vertices_kernel(
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    let data = chunk.data;
+    let len = x[0].len();
+    let mut measured = 0.0f64;
+    let mut grad = [[0.0f32; BLOCK]; 3];
+    let mut inv = [0.0f32; BLOCK];
+    let [x0, x1, x2] = x;
+    let xs = [x0, x1, x2];
+    let [p0, p1, p2] = prev;
+    let prevs = [p0, p1, p2];
+    for b in (0..len).step_by(BLOCK) {
+        let bl = BLOCK.min(len - b);
+        let at = chunk.start + b;
+        let (mass, inv_diag) = (&data.mass_term[at..at + bl], &data.inv_diag[at..at + bl]);
+        for c in 0..3 {
+            let g = &mut grad[c][..bl];
+            for f in 0..chunk.terms.offsets.len() {
+                let (ta, tb) = chunk.terms.runs(f, c, at, bl);
+                if f == 0 {
+                    for i in 0..bl {
+                        g[i] = ta[i] - tb[i];
+                    }
+                } else {
+                    for i in 0..bl {
+                        g[i] += ta[i] - tb[i];
+                    }
+                }
+            }
+            let (xc, tc) = (&xs[c][b..b + bl], &chunk.target[c][at..at + bl]);
+            for i in 0..bl {
+                g[i] += (xc[i] - tc[i]) * mass[i];
+            }
+        }
+        // `g = (x − target)·m + Σ` in the line above is `Σ + (x − target)·m`:
+        // the same value (addition commutes bitwise).
+        inv[..bl].copy_from_slice(inv_diag);
+        if !data.spheres.is_empty() {
+            for j in 0..bl {
+                let i = at + j;
+                if data.pinned[i] {
+                    continue;
+                }
+                let xi = Vec3A::new(xs[0][b + j], xs[1][b + j], xs[2][b + j]);
+                let mut diag = data.base_diag[i];
+                let mut hit = false;
+                for sphere in data.spheres {
+                    if let Some(contact) = sphere.contact(xi) {
+                        for (c, f) in contact.force.to_array().into_iter().enumerate() {
+                            grad[c][j] -= f;
+                        }
+                        diag += sphere.stiffness;
+                        hit = true;
+                    }
+                }
+                if hit {
+                    inv[j] = 1.0 / diag;
+                }
+            }
+        }
+        let inv = &inv[..bl];
+        if let Update::Chebyshev {
+            measure: true,
+            ..
+        } = update
+        {
+            for j in 0..bl {
+                let s = [0, 1, 2].map(|c| grad[c][j] * inv[j]);
+                measured += f64::from((s[0] * s[0] + s[1] * s[1]) + s[2] * s[2]);
+            }
+        }
+        for c in 0..3 {
+            let (g, xc) = (&grad[c][..bl], &mut xs[c][b..b + bl]);
+            match update {
+                Update::Jacobi => {
+                    for i in 0..bl {
+                        xc[i] -= g[i] * inv[i];
+                    }
+                }
+                Update::Chebyshev { omega, .. } => {
+                    let pc = &mut prevs[c][b..b + bl];
+                    for i in 0..bl {
+                        let x_hat = xc[i] - g[i] * inv[i];
+                        let before = pc[i];
+                        pc[i] = xc[i];
+                        xc[i] = omega * (x_hat - before) + before;
+                    }
+                }
+            }
+        }
+    }
+    measured
+}
+
+#[cfg(test)]
+#[path = "stencil_tests.rs"]
+mod tests;

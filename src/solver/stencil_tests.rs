@@ -1,0 +1,203 @@
+use bevy::math::{Affine3A, Vec3, Vec3A};
+use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+
+use super::*;
+use crate::collision::PenaltySphere;
+use crate::methods::{AnyMethod, AnyWorkspace};
+use crate::model::{ClothBuilder, ClothModel, ClothState};
+use crate::solver::implicit::ImplicitSolver;
+use crate::solver::{Method, PARALLEL_MIN, Simd, StepParams, StepReport};
+
+/// The implicit methods the stencil kernels run.
+const METHODS: [ImplicitSolver; 3] = [
+    ImplicitSolver::jacobi(32),
+    ImplicitSolver::chebyshev(32, 0.995),
+    ImplicitSolver::chebyshev_auto(32),
+];
+
+fn families(model: &ClothModel) -> Option<usize> {
+    model.topology().stencil().map(Stencil::families)
+}
+
+/// `steps` steps from `start`; the state and the last report.
+fn run(
+    method: ImplicitSolver,
+    model: &ClothModel,
+    start: &ClothState,
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+    steps: usize,
+) -> (ClothState, StepReport) {
+    let mut state = start.clone();
+    let mut ws = AnyWorkspace::default();
+    let mut report = None;
+    for _ in 0..steps {
+        let r = AnyMethod::Implicit(method)
+            .step(model, &mut state, params, spheres, &mut ws)
+            .unwrap();
+        report = Some(r);
+    }
+    (state, report.unwrap())
+}
+
+fn bits(state: &ClothState) -> Vec<[u32; 3]> {
+    state
+        .positions
+        .iter()
+        .chain(&state.velocities)
+        .map(|v| v.to_array().map(f32::to_bits))
+        .collect()
+}
+
+/// The lab cloth after 20 Chebyshev steps: swinging, every spring stretched
+/// differently.
+fn swinging(model: &ClothModel) -> ClothState {
+    let start = ClothState::at_rest(model, &Affine3A::IDENTITY);
+    run(
+        METHODS[1],
+        model,
+        &start,
+        &StepParams::LAB,
+        &[],
+        20,
+    )
+    .0
+}
+
+#[test]
+fn the_builders_grids_form_a_stencil_and_a_scattered_mesh_does_not() {
+    // The lab's triangle grid: right, down and one diagonal.
+    assert_eq!(families(&ClothBuilder::lab().build().unwrap()), Some(3));
+    // The assignment's: stretch (2), shear (2) and bending (2).
+    assert_eq!(
+        families(&ClothBuilder::assignment(10, 10).build().unwrap()),
+        Some(6)
+    );
+    // A grid numbered at random: its springs join vertices at every
+    // distance, so the families are far more than eight.
+    let side = 12u32;
+    let mut order: Vec<u32> = (0..side * side).collect();
+    let mut seed = 7u64;
+    for i in (1..order.len()).rev() {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+        order.swap(i, (seed >> 33) as usize % (i + 1));
+    }
+    let mut positions = vec![Vec3::ZERO; order.len()];
+    for (v, &new) in order.iter().enumerate() {
+        let v = v as u32;
+        positions[new as usize] = Vec3::new((v % side) as f32, 0.0, (v / side) as f32);
+    }
+    let mut indices = Vec::new();
+    for r in 0..side - 1 {
+        for c in 0..side - 1 {
+            let at = |r: u32, c: u32| order[(r * side + c) as usize];
+            indices.extend([at(r, c), at(r + 1, c), at(r, c + 1)]);
+            indices.extend([at(r, c + 1), at(r + 1, c), at(r + 1, c + 1)]);
+        }
+    }
+    // (The builder renumbers it for locality, breadth first: close in
+    // memory, but not a row-by-row grid.)
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .build()
+        .unwrap();
+    assert_eq!(families(&model), None);
+    // It steps on the general kernels.
+    let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let (state, _) = run(METHODS[0], &model, &start, &StepParams::LAB, &[], 3);
+    assert!(state.positions.iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn stencil_kernels_agree_with_the_general_kernels_within_rounding() {
+    let lab = ClothBuilder::lab().build().unwrap();
+    let assignment = ClothBuilder::assignment(12, 12).build().unwrap();
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
+    // Runs where the two kernels' bits differ: the stencil ones did run.
+    let mut differing = 0;
+    for (name, model, params) in [
+        ("lab", &lab, StepParams::LAB),
+        (
+            "assignment",
+            &assignment,
+            StepParams {
+                dt: 0.005,
+                ..StepParams::LAB
+            },
+        ),
+    ] {
+        assert!(families(model).is_some(), "{name}");
+        let start = swinging(model);
+        for spheres in [&[][..], &[sphere]] {
+            for method in METHODS {
+                let general = StepParams {
+                    stencil: false,
+                    ..params
+                };
+                let (a, ra) = run(method, model, &start, &params, spheres, 3);
+                let (b, rb) = run(method, model, &start, &general, spheres, 3);
+                let scale = model.size();
+                let worst = a
+                    .positions
+                    .iter()
+                    .zip(&b.positions)
+                    .map(|(p, q)| (*p - *q).abs().max_element())
+                    .fold(0.0f32, f32::max);
+                assert!(
+                    worst <= 2e-5 * scale,
+                    "{name}, {} with {} spheres: positions {worst} apart",
+                    method.name(),
+                    spheres.len()
+                );
+                // They did move, and differ only by rounding.
+                assert_ne!(bits(&a), bits(&start));
+                differing += usize::from(bits(&a) != bits(&b));
+                // The error estimate too (a ratio of small differences, so
+                // rounding moves it more than the positions).
+                let (ea, eb) = (ra.relative_error.unwrap(), rb.relative_error.unwrap());
+                assert!(
+                    (ea - eb).abs() <= 0.05 * eb.max(1e-3),
+                    "{name}, {}: relative errors {ea} and {eb}",
+                    method.name()
+                );
+                // Pinned vertices never move.
+                for (i, &pinned) in model.pinned().iter().enumerate() {
+                    if pinned {
+                        assert_eq!(a.positions[i], start.positions[i]);
+                    }
+                }
+            }
+        }
+    }
+    assert!(differing > 0);
+}
+
+#[test]
+fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_any_thread_count()
+{
+    ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+    // Large enough for the parallel chunks (32768 vertices and more).
+    let model = ClothBuilder::lab_grid(185).build().unwrap();
+    assert!(model.vertex_count() >= PARALLEL_MIN);
+    let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    for method in METHODS {
+        let of = |simd, parallel| {
+            let params = StepParams {
+                simd,
+                parallel,
+                ..StepParams::LAB
+            };
+            bits(&run(method, &model, &start, &params, &[], 2).0)
+        };
+        let reference = of(Simd::Baseline, false);
+        assert_eq!(of(Simd::Baseline, false), reference, "run after run");
+        for level in Simd::supported().into_iter().chain([Simd::Auto]) {
+            for parallel in [false, true] {
+                assert!(
+                    of(level, parallel) == reference,
+                    "{} at {level:?}, parallel {parallel}",
+                    method.name()
+                );
+            }
+        }
+    }
+}
