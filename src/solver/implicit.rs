@@ -28,10 +28,10 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
+use super::stencil::{StencilWorkspace, Update, VertexData};
 use super::{
     ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
 };
-use super::stencil::{StencilWorkspace, Update, VertexData};
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
 
@@ -155,20 +155,25 @@ impl Method for ImplicitSolver {
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();
         let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
-        stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-        // One term per spring and a zero past them, which padded gathers read.
-        ws.gather.terms.clear();
-        ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
-        ws.gather.row_bytes.clear();
-        let bytes = std::mem::size_of::<Vec3A>() as u32;
-        // (Offsets past u32 would take 268 million springs: such a cloth
-        // runs the unpadded gathers.)
-        if let Some(rows) = adjacency.padded()
-            && springs.len() < (u32::MAX / bytes) as usize
-        {
-            ws.gather
-                .row_bytes
-                .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * bytes))));
+        // The structure-of-arrays kernels where the springs form a stencil.
+        let stencil = model.topology().stencil().filter(|_| params.stencil);
+        if stencil.is_none() {
+            stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+            // One term per spring and a zero past them, which padded gathers
+            // read.
+            ws.gather.terms.clear();
+            ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
+            ws.gather.row_bytes.clear();
+            let bytes = std::mem::size_of::<Vec3A>() as u32;
+            // (Offsets past u32 would take 268 million springs: such a cloth
+            // runs the unpadded gathers.)
+            if let Some(rows) = adjacency.padded()
+                && springs.len() < (u32::MAX / bytes) as usize
+            {
+                ws.gather
+                    .row_bytes
+                    .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * bytes))));
+            }
         }
         let ClothState {
             positions: x,
@@ -201,8 +206,6 @@ impl Method for ImplicitSolver {
                 1.0 / ws.gather.base_diag[i]
             };
         }
-        // The structure-of-arrays kernels where the springs form a stencil.
-        let stencil = model.topology().stencil().filter(|_| params.stencil);
         let data = VertexData {
             mass_term: &ws.gather.mass_term,
             inv_diag: &ws.gather.inv_diag,
@@ -211,13 +214,10 @@ impl Method for ImplicitSolver {
             spheres,
         };
         match stencil {
-            Some(stencil) => ws.stencil.load(
-                stencil,
-                &ws.coeffs,
-                x,
-                &ws.gather.target,
-                config.chebyshev.is_some(),
-            ),
+            Some(stencil) => {
+                ws.stencil
+                    .load(stencil, k, x, &ws.gather.target, config.chebyshev.is_some())
+            }
             None if config.chebyshev.is_some() => ws.x_prev.copy_from_slice(x),
             None => {}
         }
@@ -262,7 +262,14 @@ impl Method for ImplicitSolver {
                         &mut ws.gather.terms[..springs.len()],
                     );
                     let pass = VertexPass::new(&ws.gather, model, spheres);
-                    general_vertex_pass(&pass, params.parallel, x, &mut ws.x_prev, &mut ws.chunk_sums, update)
+                    general_vertex_pass(
+                        &pass,
+                        params.parallel,
+                        x,
+                        &mut ws.x_prev,
+                        &mut ws.chunk_sums,
+                        update,
+                    )
                 }
             };
             if let Update::Chebyshev { measure: true, .. } = update {

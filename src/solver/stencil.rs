@@ -46,16 +46,21 @@ use crate::model::Spring;
 /// vertices).
 pub(crate) const MAX_FAMILIES: usize = 8;
 
-/// No spring of this family starts at the vertex.
-const NONE: u32 = u32::MAX;
+/// No spring of this family starts at the vertex (its kind's slot).
+const NONE: u8 = 3;
 
 /// A cloth's springs as offset families (see the [module docs](self)), or
 /// nothing when they do not form a stencil.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct Stencil {
-    /// Per family, in increasing offset: the offset `o` and, per vertex
-    /// `a < n − o`, the index of the spring `(a, a + o)` or [`NONE`].
-    families: Vec<(usize, Vec<u32>)>,
+    /// The families' offsets `o`, increasing.
+    offsets: Vec<usize>,
+    /// Per family, per vertex `a`: the kind of the spring `(a, a + o)`
+    /// (its index in [`SpringKind::ALL`](crate::model::SpringKind::ALL)),
+    /// or [`NONE`]; `n` entries per family.
+    kinds: Vec<u8>,
+    /// Per family, per vertex: that spring's rest length (0 for none).
+    rest: Vec<f32>,
 }
 
 impl Stencil {
@@ -66,31 +71,41 @@ impl Stencil {
         if springs.is_empty() {
             return None;
         }
-        let mut by_offset: BTreeMap<usize, Vec<u32>> = BTreeMap::new();
-        for (e, s) in springs.iter().enumerate() {
-            let (a, o) = (s.a as usize, (s.b - s.a) as usize);
+        let mut by_offset: BTreeMap<usize, Vec<&Spring>> = BTreeMap::new();
+        for s in springs {
+            let o = (s.b - s.a) as usize;
             if !by_offset.contains_key(&o) && by_offset.len() == MAX_FAMILIES {
                 return None;
             }
-            let starts = by_offset.entry(o).or_insert_with(|| vec![NONE; n - o]);
-            starts[a] = e as u32;
+            by_offset.entry(o).or_default().push(s);
         }
-        if 2 * springs.len() < by_offset.len() * n {
+        let families = by_offset.len();
+        if 2 * springs.len() < families * n {
             return None;
         }
-        Some(Self {
-            families: by_offset.into_iter().collect(),
-        })
+        let mut stencil = Self {
+            offsets: by_offset.keys().copied().collect(),
+            kinds: vec![NONE; families * n],
+            rest: vec![0.0; families * n],
+        };
+        for (f, family) in by_offset.values().enumerate() {
+            for s in family {
+                let at = f * n + s.a as usize;
+                stencil.kinds[at] = s.kind as u8;
+                stencil.rest[at] = s.rest_length;
+            }
+        }
+        Some(stencil)
     }
 
     /// How many families.
     pub(crate) fn families(&self) -> usize {
-        self.families.len()
+        self.offsets.len()
     }
 
     /// The largest offset.
     fn max_offset(&self) -> usize {
-        self.families.last().map_or(0, |f| f.0)
+        self.offsets.last().copied().unwrap_or(0)
     }
 }
 
@@ -139,18 +154,21 @@ pub(crate) struct StencilWorkspace {
     terms: Vec<f32>,
     /// Per chunk of vertices: the sum of squared steps.
     chunk_sums: Vec<f64>,
+    /// `[g_x…, g_y…, g_z…]`: the gradient at the final iterate.
+    grad: Vec<f32>,
 }
 
 /// Vertices per block of the vertex pass: its sums live in stack arrays.
 const BLOCK: usize = 128;
 
 impl StencilWorkspace {
-    /// Loads a step: the coefficients from the per-spring `coeffs`, the
-    /// positions `x` and the targets, into the structure-of-arrays state.
+    /// Loads a step: the springs' coefficients `[α, β] = [k, kL]` for the
+    /// stiffness per kind `k`, the positions `x` and the targets, into the
+    /// structure-of-arrays state.
     pub(crate) fn load(
         &mut self,
         stencil: &Stencil,
-        coeffs: &[[f32; 2]],
+        k: [f32; 3],
         x: &[Vec3A],
         target: &[Vec3A],
         chebyshev: bool,
@@ -159,25 +177,16 @@ impl StencilWorkspace {
         let families = stencil.families();
         self.n = n;
         self.pad = stencil.max_offset();
-        self.offsets.clear();
-        self.offsets.extend(stencil.families.iter().map(|f| f.0));
+        self.offsets.clone_from(&stencil.offsets);
+        // Per kind, and 0 where no spring starts (NONE = 3).
+        let k = [k[0], k[1], k[2], 0.0];
         self.alpha.clear();
+        self.alpha
+            .extend(stencil.kinds.iter().map(|&kind| k[usize::from(kind & 3)]));
         self.beta.clear();
-        for (_, starts) in &stencil.families {
-            for &e in starts {
-                let [a, b] = if e == NONE {
-                    [0.0; 2]
-                } else {
-                    coeffs[e as usize]
-                };
-                self.alpha.push(a);
-                self.beta.push(b);
-            }
-            // Past `n − o` no spring starts.
-            let missing = n - starts.len();
-            self.alpha.extend(std::iter::repeat_n(0.0, missing));
-            self.beta.extend(std::iter::repeat_n(0.0, missing));
-        }
+        // `k·L`, as the general kernels' coefficients.
+        self.beta
+            .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
         to_soa(x, &mut self.x);
         to_soa(target, &mut self.target);
         if chebyshev {
@@ -185,8 +194,10 @@ impl StencilWorkspace {
         }
         let stride = self.pad + n;
         // The pads must read as zero; the spring pass writes every term.
-        self.terms.clear();
         self.terms.resize(families * 3 * stride, 0.0);
+        for row in self.terms.chunks_mut(stride) {
+            row[..self.pad].fill(0.0);
+        }
     }
 
     /// The positions back into `x`.
@@ -258,13 +269,22 @@ impl StencilWorkspace {
         let chebyshev = matches!(update, Update::Chebyshev { .. });
         let mut xs: [_; 3] = chunked(&mut self.x, n, 0);
         // Without Chebyshev, no previous iterate: empty slices.
-        let prev = if chebyshev { &mut self.prev[..] } else { &mut [] };
+        let prev = if chebyshev {
+            &mut self.prev[..]
+        } else {
+            &mut []
+        };
         let mut prevs: [_; 3] = chunked(prev, n, 0);
         let chunks = n.div_ceil(CHUNK);
         self.chunk_sums.clear();
         self.chunk_sums.resize(chunks, 0.0);
         let work = self.chunk_sums.iter_mut().enumerate().map(|(c, sum)| {
-            (c * CHUNK, next_chunks(&mut xs), next_chunks(&mut prevs), sum)
+            (
+                c * CHUNK,
+                next_chunks(&mut xs),
+                next_chunks(&mut prevs),
+                sum,
+            )
         });
         let run = |(start, x, prev, sum): (usize, [&mut [f32]; 3], [&mut [f32]; 3], &mut f64)| {
             *sum = vertices(
@@ -285,8 +305,9 @@ impl StencilWorkspace {
     }
 
     /// The gradient at the current positions into `out` (after a
-    /// [`spring_pass`](Self::spring_pass) there), penalty contacts included.
-    pub(crate) fn gradient(&self, data: &VertexData<'_>, out: &mut [Vec3A]) {
+    /// [`spring_pass`](Self::spring_pass) there), penalty contacts included:
+    /// the vertex pass's sums, in its order.
+    pub(crate) fn gradient(&mut self, data: &VertexData<'_>, out: &mut [Vec3A]) {
         let n = self.n;
         let terms = Terms {
             data: &self.terms,
@@ -294,23 +315,39 @@ impl StencilWorkspace {
             pad: self.pad,
             offsets: &self.offsets,
         };
-        let x = [&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]];
-        for (i, g) in out[..n].iter_mut().enumerate() {
-            let mut grad = [0.0f32; 3];
-            for (c, gc) in grad.iter_mut().enumerate() {
-                let t = self.target[c * n + i];
-                *gc = (x[c][i] - t) * data.mass_term[i] + terms.sum(c, i);
+        self.grad.resize(3 * n, 0.0);
+        for c in 0..3 {
+            let g = &mut self.grad[c * n..(c + 1) * n];
+            for f in 0..terms.offsets.len() {
+                let (ta, tb) = terms.runs(f, c, 0, n);
+                for i in 0..n {
+                    g[i] = if f == 0 {
+                        ta[i] - tb[i]
+                    } else {
+                        g[i] + (ta[i] - tb[i])
+                    };
+                }
             }
-            let mut gv = Vec3A::from(grad);
+            let (x, t) = (
+                &self.x[c * n..(c + 1) * n],
+                &self.target[c * n..(c + 1) * n],
+            );
+            let mass = &data.mass_term[..n];
+            for i in 0..n {
+                g[i] += (x[i] - t[i]) * mass[i];
+            }
+        }
+        let (g, x) = (&self.grad, &self.x);
+        for (i, out) in out[..n].iter_mut().enumerate() {
+            *out = Vec3A::new(g[i], g[n + i], g[2 * n + i]);
             if !data.pinned[i] {
-                let xi = Vec3A::new(x[0][i], x[1][i], x[2][i]);
+                let xi = Vec3A::new(x[i], x[n + i], x[2 * n + i]);
                 for sphere in data.spheres {
                     if let Some(contact) = sphere.contact(xi) {
-                        gv -= contact.force;
+                        *out -= contact.force;
                     }
                 }
             }
-            *g = gv;
         }
     }
 }
@@ -331,7 +368,12 @@ fn chunked<const K: usize>(
 fn next_chunks<'a, const K: usize>(
     rows: &mut [Option<std::slice::ChunksMut<'a, f32>>; K],
 ) -> [&'a mut [f32]; K] {
-    std::array::from_fn(|j| rows[j].as_mut().and_then(Iterator::next).unwrap_or_default())
+    std::array::from_fn(|j| {
+        rows[j]
+            .as_mut()
+            .and_then(Iterator::next)
+            .unwrap_or_default()
+    })
 }
 
 /// Runs `run` on every item of `work` (one per vertex chunk of a cloth of
@@ -383,17 +425,6 @@ impl Terms<'_> {
         let i = self.pad + start;
         let o = self.offsets[f];
         (&row[i..i + len], &row[i - o..i - o + len])
-    }
-
-    /// Vertex `i`'s component-`c` sum, in the vertex pass's order.
-    fn sum(&self, c: usize, i: usize) -> f32 {
-        let mut acc = 0.0;
-        for f in 0..self.offsets.len() {
-            let (a, b) = self.runs(f, c, i, 1);
-            let d = a[0] - b[0];
-            acc = if f == 0 { d } else { acc + d };
-        }
-        acc
     }
 }
 
@@ -466,7 +497,7 @@ fn vertices(
         Simd::Avx512 => unsafe { vertices_avx512(chunk, x, prev, update) },
         #[cfg(target_arch = "x86_64")]
         Simd::Avx2 => unsafe { vertices_avx2(chunk, x, prev, update) },
-        _ => vertices_kernel(chunk, x, prev, update),
+        _ => vertices_by_families(chunk, x, prev, update),
     }
 }
 
@@ -478,7 +509,7 @@ fn vertices_avx2(
     prev: [&mut [f32]; 3],
     update: Update,
 ) -> f64 {
-    vertices_kernel(chunk, x, prev, update)
+    vertices_by_families(chunk, x, prev, update)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -489,7 +520,121 @@ fn vertices_avx512(
     prev: [&mut [f32]; 3],
     update: Update,
 ) -> f64 {
-    vertices_kernel(chunk, x, prev, update)
+    vertices_by_families(chunk, x, prev, update)
+}
+
+/// [`vertices_fused`] for the stencil's number of families (a constant in
+/// each copy, so its sum unrolls), or [`vertices_blocked`] where it does
+/// not apply.
+#[inline(always)]
+fn vertices_by_families(
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    let measure = matches!(update, Update::Chebyshev { measure: true, .. });
+    if !chunk.data.spheres.is_empty() || measure {
+        return vertices_blocked(chunk, x, prev, update);
+    }
+    match chunk.terms.offsets.len() {
+        1 => vertices_fused::<1>(chunk, x, prev, update),
+        2 => vertices_fused::<2>(chunk, x, prev, update),
+        3 => vertices_fused::<3>(chunk, x, prev, update),
+        4 => vertices_fused::<4>(chunk, x, prev, update),
+        5 => vertices_fused::<5>(chunk, x, prev, update),
+        6 => vertices_fused::<6>(chunk, x, prev, update),
+        7 => vertices_fused::<7>(chunk, x, prev, update),
+        _ => vertices_fused::<MAX_FAMILIES>(chunk, x, prev, update),
+    }
+}
+
+/// One chunk of the vertex pass without penalty contacts or measured
+/// steps (the lab's): per component one loop, each vertex's `F` family
+/// terms summed, its gradient, step and update — the same operations in
+/// the same order as [`vertices_blocked`], so the same bits.
+#[inline(always)]
+fn vertices_fused<const F: usize>(
+    chunk: &Chunk<'_>,
+    x: [&mut [f32]; 3],
+    prev: [&mut [f32]; 3],
+    update: Update,
+) -> f64 {
+    let data = chunk.data;
+    let (len, at) = (x[0].len(), chunk.start);
+    let (mass, inv) = (&data.mass_term[at..at + len], &data.inv_diag[at..at + len]);
+    for (c, (xc, pc)) in x.into_iter().zip(prev).enumerate() {
+        let runs: [(&[f32], &[f32]); F] = std::array::from_fn(|f| chunk.terms.runs(f, c, at, len));
+        let starts: [&[f32]; F] = std::array::from_fn(|f| &runs[f].0[..len]);
+        let ends: [&[f32]; F] = std::array::from_fn(|f| &runs[f].1[..len]);
+        let vertex = Vertices {
+            starts: &starts,
+            ends: &ends,
+            target: &chunk.target[c][at..at + len],
+            mass,
+            inv,
+        };
+        match update {
+            Update::Jacobi => jacobi_update(xc, &vertex),
+            Update::Chebyshev { omega, .. } => chebyshev_update(xc, pc, &vertex, omega),
+        }
+    }
+    0.0
+}
+
+/// What a chunk's update reads, per vertex (one component).
+struct Vertices<'a, const F: usize> {
+    /// Per family, the terms the vertices start and the ones they end.
+    starts: &'a [&'a [f32]; F],
+    ends: &'a [&'a [f32]; F],
+    target: &'a [f32],
+    /// `m/dt²`.
+    mass: &'a [f32],
+    /// `1/diag`.
+    inv: &'a [f32],
+}
+
+impl<const F: usize> Vertices<'_, F> {
+    /// Vertex `i`'s diagonal-Newton step `g/diag` at position `x`, with
+    /// `g = Σ (start − end) + m/dt²·(x − target)` summed in family order.
+    #[inline(always)]
+    fn step(&self, i: usize, x: f32) -> f32 {
+        let mut sum = self.starts[0][i] - self.ends[0][i];
+        for f in 1..F {
+            sum += self.starts[f][i] - self.ends[f][i];
+        }
+        (sum + (x - self.target[i]) * self.mass[i]) * self.inv[i]
+    }
+}
+
+// The two updates are functions of their own with the positions (and the
+// previous iterate) as `&mut` arguments: the compiler then knows that
+// nothing else they read overlaps them, and vectorises the loop without
+// run-time overlap checks (with those, it would not: too many).
+
+/// `x ← x − step`, elementwise.
+#[inline(always)]
+fn jacobi_update<const F: usize>(x: &mut [f32], v: &Vertices<'_, F>) {
+    for (i, xi) in x.iter_mut().enumerate() {
+        *xi -= v.step(i, *xi);
+    }
+}
+
+/// `x ← ω(x − step − prev) + prev`, `prev ← x`, elementwise.
+#[inline(always)]
+fn chebyshev_update<const F: usize>(
+    x: &mut [f32],
+    prev: &mut [f32],
+    v: &Vertices<'_, F>,
+    omega: f32,
+) {
+    let prev = &mut prev[..x.len()];
+    for i in 0..x.len() {
+        let x_hat = x[i] - v.step(i, x[i]);
+        let before = prev[i];
+        prev[i] = x[i];
+        x[i] = omega * (x_hat - before) + before;
+    }
 }
 
 /// One chunk of the vertex pass, in blocks of [`BLOCK`] vertices: per
@@ -497,7 +642,7 @@ fn vertices_avx512(
 /// `m/dt²(x − target) + Σ`; penalty contacts (per vertex, for the few in
 /// contact); then the step `g/diag` and the update.
 #[inline(always)]
-fn vertices_kernel(
+fn vertices_blocked(
     chunk: &Chunk<'_>,
     x: [&mut [f32]; 3],
     prev: [&mut [f32]; 3],
@@ -562,15 +707,16 @@ fn vertices_kernel(
             }
         }
         let inv = &inv[..bl];
-        if let Update::Chebyshev {
-            measure: true,
-            ..
-        } = update
-        {
-            for j in 0..bl {
-                let s = [0, 1, 2].map(|c| grad[c][j] * inv[j]);
-                measured += f64::from((s[0] * s[0] + s[1] * s[1]) + s[2] * s[2]);
+        if let Update::Chebyshev { measure: true, .. } = update {
+            let mut squares = [0.0f32; BLOCK];
+            let sq = &mut squares[..bl];
+            for (c, g) in grad.iter().enumerate() {
+                for j in 0..bl {
+                    let s = g[j] * inv[j];
+                    sq[j] = if c == 0 { s * s } else { sq[j] + s * s };
+                }
             }
+            measured += sq.iter().map(|&s| f64::from(s)).sum::<f64>();
         }
         for c in 0..3 {
             let (g, xc) = (&grad[c][..bl], &mut xs[c][b..b + bl]);

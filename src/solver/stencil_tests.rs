@@ -53,15 +53,7 @@ fn bits(state: &ClothState) -> Vec<[u32; 3]> {
 /// differently.
 fn swinging(model: &ClothModel) -> ClothState {
     let start = ClothState::at_rest(model, &Affine3A::IDENTITY);
-    run(
-        METHODS[1],
-        model,
-        &start,
-        &StepParams::LAB,
-        &[],
-        20,
-    )
-    .0
+    run(METHODS[1], model, &start, &StepParams::LAB, &[], 20).0
 }
 
 #[test]
@@ -172,8 +164,7 @@ fn stencil_kernels_agree_with_the_general_kernels_within_rounding() {
 }
 
 #[test]
-fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_any_thread_count()
-{
+fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_any_thread_count() {
     ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
     // Large enough for the parallel chunks (32768 vertices and more).
     let model = ClothBuilder::lab_grid(185).build().unwrap();

@@ -232,10 +232,13 @@ pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
 pub struct SimdRow {
     /// The level (resolved: one this CPU runs).
     pub level: Simd,
-    /// 32 bare spring passes at 21², one thread.
+    /// 32 bare spring passes of the general kernels at 21², one thread.
     pub springs: Timing,
-    /// One Chebyshev 32 step at 21², one thread.
+    /// One Chebyshev 32 step at 21², one thread (the stencil kernels).
     pub step: Timing,
+    /// The same step on the general kernels
+    /// ([`StepParams::stencil`] off).
+    pub general: Timing,
     /// One Chebyshev 32 step at the sweep's largest size, one thread, and
     /// that size; `None` if it is 21².
     pub large: Option<(usize, Timing)>,
@@ -282,6 +285,12 @@ pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
     });
     let mut stepper = Stepper::new(method, &model, &start);
     let steps = interleaved(config, &levels, |level| stepper.time(&params(level)));
+    let general = interleaved(config, &levels, |level| {
+        stepper.time(&StepParams {
+            stencil: false,
+            ..params(level)
+        })
+    });
     let large = (largest > 21).then(|| {
         let model = scale_model(largest);
         let start = warm_state(&model, &StepParams::LAB);
@@ -295,6 +304,7 @@ pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
             level,
             springs: passes[l],
             step: steps[l],
+            general: general[l],
             large: large.as_ref().map(|t| (largest, t[l])),
         })
         .collect()
