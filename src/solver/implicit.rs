@@ -125,6 +125,11 @@ impl Method for ImplicitSolver {
     /// Returns the iterations performed and the final gradient norm. On error
     /// the state is unchanged.
     ///
+    /// A cloth whose springs form a stencil runs both passes on the
+    /// structure-of-arrays kernels of `solver::stencil` (unless
+    /// [`StepParams::stencil`] is off); the rest of this describes the
+    /// general kernels.
+    ///
     /// Each iteration is two passes: one over springs, which computes every
     /// spring's gradient term once (square roots and divisions in packed SIMD
     /// blocks), and one over vertices, which gathers each vertex's terms over

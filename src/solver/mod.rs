@@ -27,6 +27,8 @@
 //! Shared parts: [`params`] (what a step takes and returns), [`kernels`]
 //! (the packed-SIMD spring pass and the chunked parallel loops), [`simd`]
 //! (the spring pass at the CPU's widest SIMD, chosen at run time),
+//! `stencil` (the implicit iteration's structure-of-arrays kernels for a
+//! grid cloth: crate-private, chosen per cloth when its topology is built),
 //! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`], [`measure`],
 //! [`step_error`], [`ConvergenceSums`]) and [`cholesky`] (the sparse factorisation the direct
 //! methods share).

@@ -1,6 +1,11 @@
 //! The spring pass at the fastest SIMD level this CPU has, chosen at run
 //! time.
 //!
+//! This is the general kernels' spring pass, over any spring list. A grid
+//! cloth's implicit iteration runs the stencil kernels instead
+//! (`solver::stencil`), whose plain loops the compiler vectorises at each
+//! level; [`Simd`] chooses their level too.
+//!
 //! The crate is built for baseline x86-64 (SSE2) so that a game need not be
 //! built with `-C target-cpu=native`; glam's `Vec4` is then four lanes. The
 //! spring pass ([`spring_products`]) also has 8-lane (AVX2) and 16-lane
