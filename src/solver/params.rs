@@ -80,14 +80,15 @@ pub struct StepParams {
     /// Results are bitwise the same either way; this only trades speed for
     /// threads (default `true`).
     pub parallel: bool,
-    /// The SIMD instruction set of the spring pass (default
-    /// [`Simd::Auto`](super::Simd::Auto): the fastest this CPU has). Every
-    /// choice gives the same bits; this only trades speed.
+    /// The SIMD instruction set of the spring pass, and of both passes of
+    /// the stencil kernels (default [`Simd::Auto`](super::Simd::Auto): the
+    /// fastest this CPU has). Every choice gives the same bits; this only
+    /// trades speed.
     pub simd: super::Simd,
     /// Whether a cloth whose springs form a stencil (a grid numbered row by
     /// row, as every builder's) runs the implicit iteration's
-    /// structure-of-arrays kernels (default `true`; about 2.5–3× faster on
-    /// the lab cloth: see `docs/perf.md`). They agree with the general
+    /// structure-of-arrays kernels (default `true`; about 2× faster on the
+    /// lab cloth and 2.5× at 256²: see `docs/perf.md`). They agree with the general
     /// kernels within `f32` rounding, not bitwise: a vertex sums its
     /// springs in another order. `false` runs the general kernels, for
     /// comparison.
