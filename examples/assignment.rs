@@ -87,7 +87,7 @@ fn main() -> ExitCode {
     let mut app = common::windowed_app("bevy_cloth — assignment", options.h, screenshot);
     app.insert_resource(options)
         .add_systems(Startup, setup)
-        .add_systems(FixedUpdate, sweep.in_set(ClothSystems::First));
+        .add_systems(ClothSchedule, sweep.in_set(ClothSystems::First));
     common::run(app)
 }
 

@@ -57,8 +57,8 @@ fn main() -> ExitCode {
         .insert_resource(Time::<Fixed>::from_seconds(StepParams::LAB.dt))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
         .init_resource::<Guarded>()
-        .add_systems(FixedUpdate, orbit.in_set(ClothSystems::First))
-        .add_systems(FixedUpdate, count.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, orbit.in_set(ClothSystems::First))
+        .add_systems(ClothSchedule, count.in_set(ClothSystems::Last));
     let cloth = app
         .world_mut()
         .spawn((

@@ -24,7 +24,7 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
 use crate::collision::project_contacts;
-use crate::ecs::{ClothCorePlugin, ClothSystems, project_after_shapes};
+use crate::ecs::{ClothCorePlugin, ClothSchedule, ClothSystems, project_after_shapes};
 use crate::{Cloth, ClothParams};
 
 scheduled_plugin! {
@@ -39,7 +39,7 @@ impl Plugin for AvianCollisionPlugin {
     fn build(&self, app: &mut App) {
         ClothCorePlugin::new_interned(self.schedule).add_once(app);
         app.add_systems(
-            self.schedule,
+            ClothSchedule,
             project_on_avian
                 .in_set(ClothSystems::Collide)
                 .after(project_after_shapes)

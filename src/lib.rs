@@ -349,10 +349,10 @@ use bevy::prelude::FixedUpdate;
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethod,
-    ClothMethods, ClothNotConverged, ClothParams, ClothSimulation, ClothStats, ClothStatus,
-    ClothSystems, ClothWorkspace, ContactResponse, CuboidCollider, DivergenceReason, GuardAction,
-    MethodPlugin, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
-    SphereResponse, Wind, WindPlugin,
+    ClothMethods, ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems,
+    ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, ContactResponse,
+    CuboidCollider, DivergenceReason, GuardAction, MethodPlugin, PlaneCollider,
+    ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
@@ -371,9 +371,10 @@ pub mod prelude {
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
         ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,
-        ClothParams, ClothSimulation, ClothStats, ClothStatus, ClothSystems, ContactResponse,
-        CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
-        SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+        ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation, ClothStats, ClothStatus,
+        ClothSystems, ContactResponse, CuboidCollider, DivergenceReason, GuardAction,
+        PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
+        Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,

@@ -3,7 +3,7 @@
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use super::{Cloth, ClothCorePlugin, ClothParams, ClothStats, ClothSystems};
+use super::{Cloth, ClothCorePlugin, ClothParams, ClothSchedule, ClothStats, ClothSystems};
 use crate::collision::{
     Capsule, Cuboid, PenaltySphere, Plane, Shape, Sphere, project_shapes, project_spheres,
 };
@@ -110,7 +110,7 @@ impl Plugin for SphereCollisionPlugin {
         app.register_type::<SphereCollider>()
             .register_type::<SphereResponse>()
             .add_systems(
-                self.schedule,
+                ClothSchedule,
                 (
                     gather_spheres.in_set(ClothSystems::SyncIn),
                     project_cloths
@@ -363,7 +363,7 @@ impl Plugin for ShapeCollisionPlugin {
             .register_type::<CapsuleCollider>()
             .register_type::<CuboidCollider>()
             .add_systems(
-                self.schedule,
+                ClothSchedule,
                 (
                     // After the spheres' gathering: both write ClothColliders.
                     gather_shapes

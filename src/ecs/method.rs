@@ -83,7 +83,7 @@ struct MethodSteps;
 /// Registers method `M`: its step system in [`ClothSystems::Step`] (running
 /// only while some entity has `M`), and the observers that keep one method
 /// per cloth and manage `M`'s workspace.
-pub(crate) fn add_method<M: ClothMethod>(app: &mut App, schedule: Interned<dyn ScheduleLabel>) {
+pub(crate) fn add_method<M: ClothMethod>(app: &mut App) {
     let id = app.world_mut().register_component::<M>();
     let mut methods = app.world_mut().get_resource_or_init::<ClothMethods>();
     if methods.ids.iter().any(|&(i, _, _)| i == id) {
@@ -93,7 +93,7 @@ pub(crate) fn add_method<M: ClothMethod>(app: &mut App, schedule: Interned<dyn S
         .ids
         .push((id, TypeId::of::<M>(), M::default().name()));
     app.add_systems(
-        schedule,
+        super::ClothSchedule,
         step_cloths::<M>
             .in_set(ClothSystems::Step)
             .in_set(MethodSteps)
@@ -179,7 +179,7 @@ impl<M: ClothMethod> Plugin for MethodPlugin<M> {
         super::ClothCorePlugin::new_interned(self.schedule).add_once(app);
         app.register_type::<M>()
             .register_type_data::<M, ReflectComponent>();
-        add_method::<M>(app, self.schedule);
+        add_method::<M>(app);
     }
 }
 

@@ -60,7 +60,7 @@ pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, Gu
 pub use core::{ClothCorePlugin, ClothSimulation};
 pub use mesh_source::ClothFromMesh;
 pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
-pub use schedule::{ClothFollowSystems, ClothSystems};
+pub use schedule::{ClothFollowSystems, ClothSchedule, ClothScheduleSystems, ClothSystems};
 pub use wind::{ClothAerodynamics, Wind, WindPlugin};
 
 /// Sent when the divergence guard rejects a cloth's step (see

@@ -1,10 +1,37 @@
-//! System sets: the order of a cloth step inside the configured schedule.
+//! The cloth schedule and its system sets: the order of a cloth step.
 
+use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::*;
 
+/// The schedule in which every cloth system runs, in [`ClothSystems`] order.
+///
+/// It runs once per run of the schedule given to
+/// [`ClothPlugins`](crate::ClothPlugins) (`FixedUpdate` by default, so once
+/// per fixed step), from one exclusive system in [`ClothScheduleSystems`].
+/// Add systems that must run just before or after the cloth step here, in
+/// [`ClothSystems::First`] or [`ClothSystems::Last`].
+///
+/// Its executor is single-threaded (as avian runs its `PhysicsSchedule`):
+/// the systems run one after another on one thread, and the heavy ones
+/// spread the cloths over Bevy's compute task pool themselves. Bevy's
+/// multi-threaded executor hands every system to another thread, which on
+/// the perf page's 2-core machine costs more than most of these systems'
+/// work: one lab cloth's frame paid about 110 µs for it (see
+/// `docs/perf.md`, "The frame").
+#[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ClothSchedule;
+
+/// The set, in the schedule given to [`ClothPlugins`](crate::ClothPlugins)
+/// (`FixedUpdate` by default), of the one system that runs
+/// [`ClothSchedule`]: order systems of that schedule before or after the
+/// whole cloth step with it.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ClothScheduleSystems;
+
 /// The system sets of the cloth simulation, run in this order (chained)
-/// inside the schedule given to [`ClothPlugins`](crate::ClothPlugins)
-/// (`FixedUpdate` by default), once per fixed step:
+/// in [`ClothSchedule`], which runs once per run of the schedule given to
+/// [`ClothPlugins`](crate::ClothPlugins) (`FixedUpdate` by default, so once
+/// per fixed step):
 ///
 /// 1. [`First`](Self::First): empty, for user systems that must run before
 ///    the cloth step (for example moving a collider).
@@ -24,6 +51,11 @@ use bevy::prelude::*;
 ///    [`ClothDiverged`](crate::ecs::ClothDiverged) for every rejected step,
 ///    and [`ClothStats`](crate::ecs::ClothStats) gets max stretch and energy.
 /// 7. [`Last`](Self::Last): empty, for user systems that read the result.
+///
+/// The two hooks are ordered in the outer schedule too: a system added to
+/// `FixedUpdate` (or the schedule given to the plugins) in `First` runs
+/// before the whole cloth step, one in `Last` after it. The other sets exist
+/// only in [`ClothSchedule`].
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ClothSystems {
     /// Empty hook before the step.

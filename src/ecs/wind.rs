@@ -3,7 +3,7 @@
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
-use super::{Cloth, ClothCorePlugin, ClothStats, ClothSystems};
+use super::{Cloth, ClothCorePlugin, ClothSchedule, ClothStats, ClothSystems};
 use crate::aero::{AeroCoefficients, AeroWorkspace, WindField, apply_air};
 
 /// The wind every cloth is in: a mean velocity with deterministic gusts
@@ -117,7 +117,7 @@ impl Plugin for WindPlugin {
         app.register_type::<Wind>()
             .register_type::<ClothAerodynamics>()
             .add_systems(
-                self.schedule,
+                ClothSchedule,
                 blow.in_set(ClothSystems::Forces)
                     .run_if(resource_exists::<Wind>.and_then(any_with_component::<Cloth>)),
             );

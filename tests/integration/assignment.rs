@@ -54,7 +54,7 @@ fn above_its_step_limit_symplectic_euler_is_caught_and_linearly_implicit_is_not(
     // a few milliseconds; 0.05 s is far above it.
     let mut app = assignment_app(0.05);
     app.init_resource::<Diverged>()
-        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, collect.in_set(ClothSystems::Last));
     let explicit = spawn_assignment(&mut app, 10, 10, (SymplecticSolver, ClothGuard::pause()));
     let cg = spawn_assignment(&mut app, 10, 10, LinearImplicitSolver::default());
     let direct = spawn_assignment(&mut app, 10, 10, LinearImplicitSolver::direct());

@@ -26,7 +26,7 @@ pub fn app_with<M>(plugins: impl bevy::app::Plugins<M>) -> App {
         .insert_resource(Time::<Fixed>::from_seconds(DT))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
         .init_resource::<FixedSteps>()
-        .add_systems(FixedUpdate, count.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, count.in_set(ClothSystems::Last));
     app.finish();
     app.cleanup();
     app

@@ -19,7 +19,7 @@ fn collect(mut reader: MessageReader<ClothNotConverged>, mut seen: ResMut<NotCon
 fn app_collecting() -> App {
     let mut app = app();
     app.init_resource::<NotConverged>()
-        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, collect.in_set(ClothSystems::Last));
     app
 }
 
@@ -238,7 +238,7 @@ fn an_anchor_moved_in_update_is_followed_in_the_same_frame() {
 #[test]
 fn an_anchor_moved_before_sync_in_is_followed_in_the_same_fixed_step() {
     let mut app = app();
-    app.add_systems(FixedUpdate, slide.in_set(ClothSystems::First));
+    app.add_systems(ClothSchedule, slide.in_set(ClothSystems::First));
     let cloth = spawn_lab(&mut app, ImplicitSolver::default());
     app.world_mut().entity_mut(cloth).insert(Anchor);
     for step in 0..5 {

@@ -6,12 +6,58 @@ use bevy_cloth::prelude::*;
 
 use crate::common::*;
 
-fn fixed_system_count(app: &mut App) -> usize {
+fn system_count(app: &mut App, schedule: impl bevy::ecs::schedule::ScheduleLabel) -> usize {
     app.world_mut()
         .resource_mut::<Schedules>()
-        .get(FixedUpdate)
+        .get(schedule)
         .unwrap()
         .systems_len()
+}
+
+fn fixed_system_count(app: &mut App) -> usize {
+    system_count(app, ClothSchedule)
+}
+
+/// What ran, in order, in one fixed step.
+#[derive(Resource, Default)]
+struct Ran(Vec<(&'static str, f32)>);
+
+/// A system that logs its name and the height of the lab cloth's vertex 220.
+fn log(name: &'static str) -> impl FnMut(ResMut<Ran>, Query<&Cloth>) {
+    move |mut ran, cloths| {
+        let y = cloths
+            .iter()
+            .next()
+            .map_or(f32::NAN, |c| c.positions()[220].y);
+        ran.0.push((name, y));
+    }
+}
+
+#[test]
+fn the_cloth_schedule_runs_once_per_fixed_step_between_the_outer_hooks() {
+    let mut app = app();
+    app.init_resource::<Ran>()
+        .add_systems(FixedUpdate, log("outer first").in_set(ClothSystems::First))
+        .add_systems(FixedUpdate, log("outer last").in_set(ClothSystems::Last))
+        .add_systems(ClothSchedule, log("first").in_set(ClothSystems::First))
+        .add_systems(ClothSchedule, log("last").in_set(ClothSystems::Last));
+    spawn_lab(&mut app, ImplicitSolver::default());
+    // `FixedUpdate` holds the one system that runs the cloth schedule and
+    // the test's own two.
+    assert_eq!(system_count(&mut app, FixedUpdate), 3);
+    run_steps(&mut app, 3);
+    let ran = &app.world().resource::<Ran>().0;
+    let names: Vec<_> = ran.iter().map(|&(n, _)| n).collect();
+    assert_eq!(
+        names,
+        ["outer first", "first", "last", "outer last"].repeat(3)
+    );
+    // The step happens between `First` and `Last`, and nowhere else.
+    for s in ran.chunks(4).skip(1) {
+        assert_eq!(s[0].1, s[1].1);
+        assert!(s[2].1 < s[1].1, "the cloth falls during the step: {s:?}");
+        assert_eq!(s[2].1, s[3].1);
+    }
 }
 
 #[test]
@@ -206,7 +252,7 @@ fn collect(mut reader: MessageReader<ClothDiverged>, mut seen: ResMut<Diverged>)
 fn a_diverging_cloth_is_stopped_restored_and_reported() {
     let mut app = app();
     app.init_resource::<Diverged>()
-        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, collect.in_set(ClothSystems::Last));
     // Chebyshev with rho far above the Jacobi iteration's spectral radius at
     // k = 1e6 diverges within a few dozen steps.
     let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.9999));
@@ -246,7 +292,7 @@ fn past_the_explicit_limit_the_guard_retries_with_halved_steps() {
     // retried with halved steps, and the cloth hangs as it should.
     let mut app = app();
     app.init_resource::<Diverged>()
-        .add_systems(FixedUpdate, collect.in_set(ClothSystems::Last));
+        .add_systems(ClothSchedule, collect.in_set(ClothSystems::Last));
     let cloth = spawn_lab(&mut app, SymplecticSolver);
     let paused = spawn_lab(&mut app, SymplecticSolver);
     app.world_mut()

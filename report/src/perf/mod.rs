@@ -32,8 +32,8 @@ mod sweep;
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
 pub use sweep::{
-    Case, CgParts, SWEEP_ROUNDS, SimdRow, cg_parts, many_cloths, scale_model, simd_levels, sweep,
-    sweep_methods, warm_state,
+    Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, cg_parts, frame_costs, many_cloths,
+    scale_model, simd_levels, sweep, sweep_methods, warm_state,
 };
 
 use std::path::PathBuf;
@@ -187,6 +187,7 @@ mod tests {
         for heading in [
             "## Time per step",
             "## Many cloths",
+            "## The frame",
             "## Sparse CG",
             "## The limit",
         ] {

@@ -197,34 +197,90 @@ pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
     cases
 }
 
-/// Time per `App::update` (one fixed step of every cloth) with `cloths` lab
-/// cloths (21², Chebyshev 32) under `MinimalPlugins` and the cloth plugins.
-/// Bevy's task pools are set up once per process: after [`run`] has made
-/// the compute pool, the app uses that one.
-pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
+/// An app of `MinimalPlugins` with `cloths` lab cloths (21², Chebyshev 32)
+/// and the cloth plugins (none if `cloths` is `None`: Bevy's bare frame),
+/// warmed up, one fixed step per update. With `single_threaded`, every
+/// schedule gets Bevy's single-threaded executor.
+fn lab_app(cloths: Option<usize>, single_threaded: bool) -> App {
+    use bevy::ecs::schedule::{Schedules, SingleThreadedExecutor};
     use bevy_cloth::{Cloth, ClothParams};
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, bevy_cloth::ClothPlugins::default()))
+    app.add_plugins(MinimalPlugins)
         .insert_resource(Time::<Fixed>::from_seconds(0.0333))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
-    let model = ClothBuilder::lab().build().expect("the lab cloth");
-    for c in 0..cloths {
-        app.world_mut().spawn((
-            Cloth::new(model.clone()),
-            ClothParams::default(),
-            ImplicitSolver::chebyshev(32, 0.995),
-            Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
-        ));
+    if let Some(cloths) = cloths {
+        app.add_plugins(bevy_cloth::ClothPlugins::default());
+        let model = ClothBuilder::lab().build().expect("the lab cloth");
+        for c in 0..cloths {
+            app.world_mut().spawn((
+                Cloth::new(model.clone()),
+                ClothParams::default(),
+                ImplicitSolver::chebyshev(32, 0.995),
+                Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
+            ));
+        }
     }
     app.world_mut()
         .resource_mut::<Time<Virtual>>()
         .set_max_delta(Duration::from_secs_f64(0.25));
     app.finish();
     app.cleanup();
+    if single_threaded {
+        let mut schedules = app.world_mut().resource_mut::<Schedules>();
+        for (_, schedule) in schedules.iter_mut() {
+            schedule.set_executor(SingleThreadedExecutor::new());
+        }
+    }
     for _ in 0..21 {
         app.update();
     }
+    app
+}
+
+/// Time per `App::update` (one fixed step of every cloth) with `cloths` lab
+/// cloths (21², Chebyshev 32) under `MinimalPlugins` and the cloth plugins.
+/// Bevy's task pools are set up once per process: after [`run`] has made
+/// the compute pool, the app uses that one.
+pub fn many_cloths(config: &PerfConfig, cloths: usize) -> Timing {
+    let mut app = lab_app(Some(cloths), false);
     time_runs(config.budget, config.min_samples, || app.update())
+}
+
+/// One `App::update` with and without one lab cloth, under Bevy's default
+/// (multi-threaded) executor and under the single-threaded one, timed in
+/// turns ([`frame_costs`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FrameCosts {
+    /// `MinimalPlugins` alone: Bevy's own frame.
+    pub bare: Timing,
+    /// `MinimalPlugins` + `ClothPlugins` + one lab cloth.
+    pub one: Timing,
+    /// [`bare`](Self::bare), every schedule single-threaded.
+    pub bare_single: Timing,
+    /// [`one`](Self::one), every schedule single-threaded.
+    pub one_single: Timing,
+}
+
+/// Times the four apps of [`FrameCosts`] in turns, so that the machine's
+/// slow and fast spells fall on each alike.
+pub fn frame_costs(config: &PerfConfig) -> FrameCosts {
+    let mut apps = [
+        lab_app(None, false),
+        lab_app(Some(1), false),
+        lab_app(None, true),
+        lab_app(Some(1), true),
+    ];
+    let t = interleaved(config, &[0, 1, 2, 3], |a| {
+        let t = Instant::now();
+        apps[a].update();
+        t.elapsed().as_secs_f64()
+    });
+    FrameCosts {
+        bare: t[0],
+        one: t[1],
+        bare_single: t[2],
+        one_single: t[3],
+    }
 }
 
 /// One SIMD level of the spring pass, timed ([`simd_levels`]).
@@ -350,10 +406,10 @@ impl<'a> Stepper<'a> {
 /// `sample(level)` for every level in turn, two warm-up rounds, then rounds
 /// until each level has [`PerfConfig::min_samples`] samples and the rounds
 /// have taken the page's budget times the number of levels.
-fn interleaved(
+fn interleaved<T: Copy>(
     config: &PerfConfig,
-    levels: &[Simd],
-    mut sample: impl FnMut(Simd) -> f64,
+    levels: &[T],
+    mut sample: impl FnMut(T) -> f64,
 ) -> Vec<Timing> {
     for _ in 0..2 {
         for &level in levels {
