@@ -185,31 +185,53 @@ impl Method for ImplicitSolver {
             velocities: v,
         } = state;
 
-        // 1.a: damping, prediction, initial guess.
-        for i in 0..n {
-            if !pinned[i] {
-                v[i] *= params.damping;
-                x[i] += dt * v[i];
+        // 1.a: damping, prediction, initial guess (loops over zipped slices:
+        // no bounds checks, and the per-vertex constants vectorise).
+        for ((x, v), &pinned) in x.iter_mut().zip(v.iter_mut()).zip(pinned) {
+            if !pinned {
+                *v *= params.damping;
+                *x += dt * *v;
             }
-            ws.x_tilde[i] = x[i];
-            ws.gather.target[i] = x[i] + gravity_step;
-            let m = model.masses()[i];
-            ws.gather.mass_term[i] = m * inv_dt2;
-            let spring_diag = if lab_diagonal {
-                4.0 * k[SpringKind::Stretch as usize]
-            } else {
-                adjacency
+        }
+        ws.x_tilde[..n].copy_from_slice(x);
+        // The stencil kernels make their targets from x themselves.
+        if stencil.is_none() {
+            for (t, &x) in ws.gather.target.iter_mut().zip(x.iter()) {
+                *t = x + gravity_step;
+            }
+        }
+        for (t, &m) in ws.gather.mass_term.iter_mut().zip(model.masses()) {
+            *t = m * inv_dt2;
+        }
+        if lab_diagonal {
+            let spring_diag = 4.0 * k[SpringKind::Stretch as usize];
+            for (d, &m) in ws.gather.base_diag.iter_mut().zip(&ws.gather.mass_term) {
+                *d = m + spring_diag;
+            }
+        } else {
+            for (i, (d, &m)) in ws
+                .gather
+                .base_diag
+                .iter_mut()
+                .zip(&ws.gather.mass_term)
+                .enumerate()
+            {
+                let spring_diag: f32 = adjacency
                     .of(i)
                     .iter()
                     .map(|inc| k[springs[inc.spring as usize].kind as usize])
-                    .sum()
-            };
-            ws.gather.base_diag[i] = m * inv_dt2 + spring_diag;
-            ws.gather.inv_diag[i] = if pinned[i] {
-                0.0
-            } else {
-                1.0 / ws.gather.base_diag[i]
-            };
+                    .sum();
+                *d = m + spring_diag;
+            }
+        }
+        for ((inv, &d), &pinned) in ws
+            .gather
+            .inv_diag
+            .iter_mut()
+            .zip(&ws.gather.base_diag)
+            .zip(pinned)
+        {
+            *inv = if pinned { 0.0 } else { 1.0 / d };
         }
         let data = VertexData {
             mass_term: &ws.gather.mass_term,
@@ -221,7 +243,7 @@ impl Method for ImplicitSolver {
         match stencil {
             Some(stencil) => {
                 ws.stencil
-                    .load(stencil, k, x, &ws.gather.target, config.chebyshev.is_some())
+                    .load(stencil, k, x, gravity_step, config.chebyshev.is_some())
             }
             None if config.chebyshev.is_some() => ws.x_prev.copy_from_slice(x),
             None => {}
@@ -287,8 +309,7 @@ impl Method for ImplicitSolver {
         match stencil {
             Some(_) => {
                 ws.stencil.spring_pass(params.simd, params.parallel);
-                ws.stencil.store(x);
-                ws.stencil.gradient(&data, &mut ws.grad);
+                ws.stencil.gradient_and_store(&data, &mut ws.grad, x);
             }
             None => {
                 spring_terms(
@@ -304,27 +325,23 @@ impl Method for ImplicitSolver {
                 }
             }
         }
+        // 1.c with the residual: velocities from the positions, and the
+        // gradient's norm and convergence sums over free vertices.
         let mut residual = 0.0f32;
         let mut convergence = ConvergenceSums::default();
-        let masses = model.masses();
-        for i in 0..n {
-            if !pinned[i] {
-                let g = ws.grad[i];
-                residual += g.length_squared();
-                // x̃ = x_start + dt·v (v damped): the step's motion is x − x_start.
-                let motion = x[i] - (ws.x_tilde[i] - dt * v[i]);
-                convergence.add(g * (dt * dt / masses[i]), motion);
-            }
+        let inv_dt = 1.0 / dt;
+        let free = (v.iter_mut().zip(x.iter()))
+            .zip(ws.x_tilde.iter().zip(ws.grad.iter()))
+            .zip(model.masses().iter().zip(pinned))
+            .filter(|(_, (_, pinned))| !**pinned);
+        for (((v, &x), (&x_tilde, &g)), (&m, _)) in free {
+            residual += g.length_squared();
+            // x̃ = x_start + dt·v (v damped): the step's motion is x − x_start.
+            let motion = x - (x_tilde - dt * *v);
+            convergence.add(g * (dt * dt / m), motion);
+            *v += (x - x_tilde) * inv_dt;
         }
         let residual = residual.sqrt();
-
-        // 1.c: velocities from the positions.
-        let inv_dt = 1.0 / dt;
-        for i in 0..n {
-            if !pinned[i] {
-                v[i] += (x[i] - ws.x_tilde[i]) * inv_dt;
-            }
-        }
         Ok(StepReport {
             iterations: config.iterations,
             residual: Some(residual),

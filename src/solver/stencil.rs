@@ -164,14 +164,14 @@ const BLOCK: usize = 128;
 
 impl StencilWorkspace {
     /// Loads a step: the springs' coefficients `[α, β] = [k, kL]` for the
-    /// stiffness per kind `k`, the positions `x` and the targets, into the
-    /// structure-of-arrays state.
+    /// stiffness per kind `k`, the positions `x` and the targets
+    /// `x + offset`, into the structure-of-arrays state.
     pub(crate) fn load(
         &mut self,
         stencil: &Stencil,
         k: [f32; 3],
         x: &[Vec3A],
-        target: &[Vec3A],
+        offset: Vec3A,
         chebyshev: bool,
     ) {
         let n = x.len();
@@ -189,7 +189,11 @@ impl StencilWorkspace {
         self.beta
             .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
         to_soa(x, &mut self.x);
-        to_soa(target, &mut self.target);
+        self.target.clear();
+        for (c, o) in offset.to_array().into_iter().enumerate() {
+            let row = &self.x[c * n..(c + 1) * n];
+            self.target.extend(row.iter().map(|&x| x + o));
+        }
         if chebyshev {
             self.prev.clone_from(&self.x);
         }
@@ -201,15 +205,6 @@ impl StencilWorkspace {
         }
     }
 
-    /// The positions back into `x`.
-    pub(crate) fn store(&self, x: &mut [Vec3A]) {
-        let n = self.n;
-        let (px, py, pz) = (&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]);
-        for (i, xi) in x[..n].iter_mut().enumerate() {
-            *xi = Vec3A::new(px[i], py[i], pz[i]);
-        }
-    }
-
     /// Every spring's term `d·(α − β/l)` at the current positions, at
     /// `simd`'s level, in vertex chunks (in parallel when `parallel` allows).
     pub(crate) fn spring_pass(&mut self, simd: Simd, parallel: bool) {
@@ -218,9 +213,6 @@ impl StencilWorkspace {
         let level = simd.resolve();
         let x = [&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]];
         let (alpha, beta, offsets) = (&self.alpha, &self.beta, &self.offsets);
-        // Per family and component, its terms in vertex chunks.
-        let mut parts: [_; 3 * MAX_FAMILIES] = chunked(&mut self.terms, stride, pad);
-        let work = (0..n.div_ceil(CHUNK)).map(|c| (c * CHUNK, next_chunks(&mut parts)));
         let run = |(start, mut out): (usize, [&mut [f32]; 3 * MAX_FAMILIES])| {
             let (out, _) = out.as_chunks_mut::<3>();
             for (f, (&o, [tx, ty, tz])) in offsets.iter().zip(out).enumerate() {
@@ -240,6 +232,19 @@ impl StencilWorkspace {
                 }
             }
         };
+        if n <= CHUNK {
+            // One chunk (the lab cloth): its rows straight, without the
+            // chunk iterators, which cost 3 % of the lab step.
+            let mut out: [&mut [f32]; 3 * MAX_FAMILIES] = Default::default();
+            for (slot, row) in out.iter_mut().zip(self.terms.chunks_mut(stride)) {
+                *slot = &mut row[pad..];
+            }
+            run((0, out));
+            return;
+        }
+        // Per family and component, its terms in vertex chunks.
+        let mut parts: [_; 3 * MAX_FAMILIES] = chunked(&mut self.terms, stride, pad);
+        let work = (0..n.div_ceil(CHUNK)).map(|c| (c * CHUNK, next_chunks(&mut parts)));
         run_chunks(parallel, n, work, run);
     }
 
@@ -268,18 +273,57 @@ impl StencilWorkspace {
             &self.target[2 * n..3 * n],
         ];
         let chebyshev = matches!(update, Update::Chebyshev { .. });
-        let mut xs: [_; 3] = chunked(&mut self.x, n, 0);
         // Without Chebyshev, no previous iterate: empty slices.
         let prev = if chebyshev {
             &mut self.prev[..]
         } else {
             &mut []
         };
+        let squares = if n <= CHUNK {
+            // One chunk: as in `spring_pass`.
+            let (x, p) = (thirds(&mut self.x[..3 * n], n), thirds(prev, n));
+            let chunk = Chunk {
+                start: 0,
+                terms: &terms,
+                target,
+                data,
+            };
+            vertices(level, &chunk, x, p, update)
+        } else {
+            Self::chunked_vertices(
+                &mut self.x,
+                prev,
+                &mut self.chunk_sums,
+                (parallel, level, update),
+                &terms,
+                target,
+                data,
+            )
+        };
+        // Chebyshev wrote the next iterate over the one before the current.
+        if chebyshev {
+            std::mem::swap(&mut self.x, &mut self.prev);
+        }
+        squares
+    }
+
+    /// [`vertex_pass`](Self::vertex_pass) over several chunks.
+    fn chunked_vertices(
+        x: &mut [f32],
+        prev: &mut [f32],
+        chunk_sums: &mut Vec<f64>,
+        (parallel, level, update): (bool, Simd, Update),
+        terms: &Terms<'_>,
+        target: [&[f32]; 3],
+        data: &VertexData<'_>,
+    ) -> f64 {
+        let n = target[0].len();
+        let mut xs: [_; 3] = chunked(x, n, 0);
         let mut prevs: [_; 3] = chunked(prev, n, 0);
         let chunks = n.div_ceil(CHUNK);
-        self.chunk_sums.clear();
-        self.chunk_sums.resize(chunks, 0.0);
-        let work = self.chunk_sums.iter_mut().enumerate().map(|(c, sum)| {
+        chunk_sums.clear();
+        chunk_sums.resize(chunks, 0.0);
+        let work = chunk_sums.iter_mut().enumerate().map(|(c, sum)| {
             (
                 c * CHUNK,
                 next_chunks(&mut xs),
@@ -292,7 +336,7 @@ impl StencilWorkspace {
                 level,
                 &Chunk {
                     start,
-                    terms: &terms,
+                    terms,
                     target,
                     data,
                 },
@@ -302,13 +346,19 @@ impl StencilWorkspace {
             );
         };
         run_chunks(parallel, n, work, run);
-        self.chunk_sums.iter().sum()
+        chunk_sums.iter().sum()
     }
 
     /// The gradient at the current positions into `out` (after a
     /// [`spring_pass`](Self::spring_pass) there), penalty contacts included:
-    /// the vertex pass's sums, in its order.
-    pub(crate) fn gradient(&mut self, data: &VertexData<'_>, out: &mut [Vec3A]) {
+    /// the vertex pass's sums, in its order; and the positions into
+    /// `positions`.
+    pub(crate) fn gradient_and_store(
+        &mut self,
+        data: &VertexData<'_>,
+        out: &mut [Vec3A],
+        positions: &mut [Vec3A],
+    ) {
         let n = self.n;
         let terms = Terms {
             data: &self.terms,
@@ -339,18 +389,35 @@ impl StencilWorkspace {
             }
         }
         let (g, x) = (&self.grad, &self.x);
-        for (i, out) in out[..n].iter_mut().enumerate() {
-            *out = Vec3A::new(g[i], g[n + i], g[2 * n + i]);
-            if !data.pinned[i] {
-                let xi = Vec3A::new(x[i], x[n + i], x[2 * n + i]);
-                for sphere in data.spheres {
-                    if let Some(contact) = sphere.contact(xi) {
-                        *out -= contact.force;
+        let (gx, gy, gz) = (&g[..n], &g[n..2 * n], &g[2 * n..3 * n]);
+        let (px, py, pz) = (&x[..n], &x[n..2 * n], &x[2 * n..3 * n]);
+        for (i, (out, xo)) in out[..n].iter_mut().zip(&mut positions[..n]).enumerate() {
+            *out = Vec3A::new(gx[i], gy[i], gz[i]);
+            *xo = Vec3A::new(px[i], py[i], pz[i]);
+        }
+        if !data.spheres.is_empty() {
+            for (i, out) in out[..n].iter_mut().enumerate() {
+                if !data.pinned[i] {
+                    for sphere in data.spheres {
+                        if let Some(contact) = sphere.contact(positions[i]) {
+                            *out -= contact.force;
+                        }
                     }
                 }
             }
         }
     }
+}
+
+/// `data` (`3n` long, or empty) as its three rows of `n` (three empty
+/// slices if it is empty).
+fn thirds(data: &mut [f32], n: usize) -> [&mut [f32]; 3] {
+    if data.is_empty() {
+        return Default::default();
+    }
+    let (a, rest) = data.split_at_mut(n);
+    let (b, c) = rest.split_at_mut(n);
+    [a, b, &mut c[..n]]
 }
 
 /// The first `K` rows of `data` (each `stride` long, its first `skip`
@@ -621,7 +688,9 @@ fn jacobi_update<const F: usize>(x: &mut [f32], v: &Vertices<'_, F>) {
     }
 }
 
-/// `x ← ω(x − step − prev) + prev`, `prev ← x`, elementwise.
+/// `prev ← ω(x − step − prev) + prev`, elementwise: the next iterate over
+/// the one before the current (the pass then swaps the two buffers, so one
+/// store per vertex instead of two).
 #[inline(always)]
 fn chebyshev_update<const F: usize>(
     x: &mut [f32],
@@ -633,8 +702,7 @@ fn chebyshev_update<const F: usize>(
     for i in 0..x.len() {
         let x_hat = x[i] - v.step(i, x[i]);
         let before = prev[i];
-        prev[i] = x[i];
-        x[i] = omega * (x_hat - before) + before;
+        prev[i] = omega * (x_hat - before) + before;
     }
 }
 
@@ -729,11 +797,11 @@ fn vertices_blocked(
                 }
                 Update::Chebyshev { omega, .. } => {
                     let pc = &mut prevs[c][b..b + bl];
+                    // As `chebyshev_update`: the buffers swap after the pass.
                     for i in 0..bl {
                         let x_hat = xc[i] - g[i] * inv[i];
                         let before = pc[i];
-                        pc[i] = xc[i];
-                        xc[i] = omega * (x_hat - before) + before;
+                        pc[i] = omega * (x_hat - before) + before;
                     }
                 }
             }
