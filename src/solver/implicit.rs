@@ -250,37 +250,24 @@ impl Method for ImplicitSolver {
         }
 
         // 1.b–1.d: K diagonal-Newton iterations, optionally Chebyshev-accelerated.
-        let mut omega = 1.0f32;
-        // Iterations before acceleration starts, and ρ.
-        let (delay, mut rho) = match config.chebyshev {
-            Some(Rho::Auto) => ((config.iterations / 4).clamp(2, 8), 0.0),
-            Some(Rho::Fixed(r)) => (0, r),
-            None => (0, 0.0),
-        };
         ws.update_norms.clear();
-        for k in 0..config.iterations {
-            // A pinned vertex has a zero inverse diagonal, so no update moves
-            // it (Chebyshev: its iterate and the one before are equal).
-            let update = match config.chebyshev {
-                None => Update::Jacobi,
-                Some(kind) => {
-                    if kind == Rho::Auto && k == delay {
-                        rho = rho_from_update_norms(&ws.update_norms);
-                    }
-                    omega = chebyshev_omega(k, delay, rho, omega);
-                    Update::Chebyshev {
-                        omega,
-                        measure: k < delay,
-                    }
-                }
-            };
-            let squared_steps = match stencil {
-                Some(_) => {
-                    ws.stencil.spring_pass(params.simd, params.parallel);
-                    ws.stencil
-                        .vertex_pass(params.simd, params.parallel, &data, update)
-                }
-                None => {
+        let mut updates = Updates::new(config, &mut ws.update_norms);
+        ws.grad.resize(n, Vec3A::ZERO);
+        match stencil {
+            Some(_) => ws.stencil.iterate(
+                params.simd,
+                params.parallel,
+                &data,
+                config.iterations,
+                config.chebyshev.is_some(),
+                |k, squares| updates.next(k, squares),
+                &mut ws.grad,
+                x,
+            ),
+            None => {
+                let mut squares = 0.0;
+                for k in 0..config.iterations {
+                    let update = updates.next(k, squares);
                     spring_terms(
                         params,
                         model,
@@ -289,29 +276,17 @@ impl Method for ImplicitSolver {
                         &mut ws.gather.terms[..springs.len()],
                     );
                     let pass = VertexPass::new(&ws.gather, model, spheres);
-                    general_vertex_pass(
+                    squares = general_vertex_pass(
                         &pass,
                         params.parallel,
                         x,
                         &mut ws.x_prev,
                         &mut ws.chunk_sums,
                         update,
-                    )
+                    );
                 }
-            };
-            if let Update::Chebyshev { measure: true, .. } = update {
-                ws.update_norms.push(squared_steps.sqrt());
-            }
-        }
-
-        // Residual at the final iterate: the gradient over free vertices.
-        ws.grad.resize(n, Vec3A::ZERO);
-        match stencil {
-            Some(_) => {
-                ws.stencil.spring_pass(params.simd, params.parallel);
-                ws.stencil.gradient_and_store(&data, &mut ws.grad, x);
-            }
-            None => {
+                // Residual at the final iterate: the gradient over free
+                // vertices.
                 spring_terms(
                     params,
                     model,
@@ -347,6 +322,63 @@ impl Method for ImplicitSolver {
             residual: Some(residual),
             relative_error: Some(convergence.relative_error(model, params.dt)),
         })
+    }
+}
+
+/// Each iteration's update: Jacobi, or Chebyshev with its `ω` (after
+/// `Rho::Auto`'s measured iterations, from the `ρ` they give).
+struct Updates<'a> {
+    chebyshev: Option<Rho>,
+    /// Iterations before acceleration starts.
+    delay: u32,
+    rho: f32,
+    omega: f32,
+    /// The measured iterations' update norms.
+    norms: &'a mut Vec<f64>,
+    /// The last update measured its steps.
+    measured: bool,
+}
+
+impl<'a> Updates<'a> {
+    fn new(config: &ImplicitSolver, norms: &'a mut Vec<f64>) -> Self {
+        let (delay, rho) = match config.chebyshev {
+            Some(Rho::Auto) => ((config.iterations / 4).clamp(2, 8), 0.0),
+            Some(Rho::Fixed(r)) => (0, r),
+            None => (0, 0.0),
+        };
+        Self {
+            chebyshev: config.chebyshev,
+            delay,
+            rho,
+            omega: 1.0,
+            norms,
+            measured: false,
+        }
+    }
+
+    /// Iteration `k`'s update; `squares` is the sum of squared steps of
+    /// iteration `k − 1` (read if it measured them). A pinned vertex has a
+    /// zero inverse diagonal, so no update moves it (Chebyshev: its iterate
+    /// and the one before are equal).
+    fn next(&mut self, k: u32, squares: f64) -> Update {
+        if self.measured {
+            self.norms.push(squares.sqrt());
+        }
+        let update = match self.chebyshev {
+            None => Update::Jacobi,
+            Some(kind) => {
+                if kind == Rho::Auto && k == self.delay {
+                    self.rho = rho_from_update_norms(self.norms);
+                }
+                self.omega = chebyshev_omega(k, self.delay, self.rho, self.omega);
+                Update::Chebyshev {
+                    omega: self.omega,
+                    measure: k < self.delay,
+                }
+            }
+        };
+        self.measured = matches!(update, Update::Chebyshev { measure: true, .. });
+        update
     }
 }
 

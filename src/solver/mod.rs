@@ -43,6 +43,7 @@ pub mod measures;
 pub mod method;
 pub mod params;
 pub mod pbd;
+mod phases;
 pub mod projective;
 pub mod simd;
 pub(crate) mod stencil;

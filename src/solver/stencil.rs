@@ -38,6 +38,7 @@ use std::collections::BTreeMap;
 use bevy::math::Vec3A;
 
 use super::kernels::{CHUNK, parallel_pool};
+use super::phases::run_phases;
 use super::simd::Simd;
 use crate::collision::PenaltySphere;
 use crate::model::Spring;
@@ -205,200 +206,329 @@ impl StencilWorkspace {
         }
     }
 
-    /// Every spring's term `d·(α − β/l)` at the current positions, at
-    /// `simd`'s level, in vertex chunks (in parallel when `parallel` allows).
-    pub(crate) fn spring_pass(&mut self, simd: Simd, parallel: bool) {
-        let (n, pad) = (self.n, self.pad);
-        let stride = pad + n;
-        let level = simd.resolve();
-        let x = [&self.x[..n], &self.x[n..2 * n], &self.x[2 * n..3 * n]];
-        let (alpha, beta, offsets) = (&self.alpha, &self.beta, &self.offsets);
-        let run = |(start, mut out): (usize, [&mut [f32]; 3 * MAX_FAMILIES])| {
-            let (out, _) = out.as_chunks_mut::<3>();
-            for (f, (&o, [tx, ty, tz])) in offsets.iter().zip(out).enumerate() {
-                let len = tx.len();
-                // Springs start at `a < n − o`.
-                let m = (n - o).saturating_sub(start).min(len);
-                let coeff = f * n + start..f * n + start + m;
-                let ends = |c: usize| (&x[c][start..start + m], &x[c][start + o..start + o + m]);
-                springs(
-                    level,
-                    [ends(0), ends(1), ends(2)],
-                    (&alpha[coeff.clone()], &beta[coeff]),
-                    [&mut tx[..m], &mut ty[..m], &mut tz[..m]],
-                );
-                for t in [tx, ty, tz] {
-                    t[m..].fill(0.0);
-                }
-            }
-        };
-        if n <= CHUNK {
-            // One chunk (the lab cloth): its rows straight, without the
-            // chunk iterators, which cost 3 % of the lab step.
-            let mut out: [&mut [f32]; 3 * MAX_FAMILIES] = Default::default();
-            for (slot, row) in out.iter_mut().zip(self.terms.chunks_mut(stride)) {
-                *slot = &mut row[pad..];
-            }
-            run((0, out));
-            return;
-        }
-        // Per family and component, its terms in vertex chunks.
-        let mut parts: [_; 3 * MAX_FAMILIES] = chunked(&mut self.terms, stride, pad);
-        let work = (0..n.div_ceil(CHUNK)).map(|c| (c * CHUNK, next_chunks(&mut parts)));
-        run_chunks(parallel, n, work, run);
-    }
-
-    /// One vertex pass: each vertex's gradient `m/dt²(x − target) + Σ
-    /// terms` (penalty contacts included), its diagonal-Newton step, and
-    /// `update` applied. Returns the sum of squared steps when `update`
-    /// measures them (in chunk order: the same on any thread count).
-    pub(crate) fn vertex_pass(
+    /// The iteration after [`load`](Self::load): `iterations` times a
+    /// spring pass and a vertex pass whose update `next(k, squares)` gives
+    /// (`squares`: the sum of squared steps the pass before measured, 0 for
+    /// the first), then a spring pass at the final iterate, whose gradient
+    /// (penalty contacts included, the vertex pass's sums in its order)
+    /// goes to `gradient` and positions to `positions`. `chebyshev` says
+    /// whether the updates are Chebyshev's (they then write the next
+    /// iterate over the one before, and the two buffers take turns).
+    ///
+    /// All passes run in one parallel region when `parallel` allows
+    /// ([`run_phases`]): every pass is a phase of vertex chunks.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn iterate(
         &mut self,
         simd: Simd,
         parallel: bool,
         data: &VertexData<'_>,
-        update: Update,
-    ) -> f64 {
-        let n = self.n;
-        let level = simd.resolve();
-        let terms = Terms {
-            data: &self.terms,
-            stride: self.pad + n,
-            pad: self.pad,
-            offsets: &self.offsets,
-        };
-        let target = [
-            &self.target[..n],
-            &self.target[n..2 * n],
-            &self.target[2 * n..3 * n],
-        ];
-        let chebyshev = matches!(update, Update::Chebyshev { .. });
-        // Without Chebyshev, no previous iterate: empty slices.
-        let prev = if chebyshev {
-            &mut self.prev[..]
-        } else {
-            &mut []
-        };
-        let squares = if n <= CHUNK {
-            // One chunk: as in `spring_pass`.
-            let (x, p) = (thirds(&mut self.x[..3 * n], n), thirds(prev, n));
-            let chunk = Chunk {
-                start: 0,
-                terms: &terms,
-                target,
-                data,
-            };
-            vertices(level, &chunk, x, p, update)
-        } else {
-            Self::chunked_vertices(
-                &mut self.x,
-                prev,
-                &mut self.chunk_sums,
-                (parallel, level, update),
-                &terms,
-                target,
-                data,
-            )
-        };
-        // Chebyshev wrote the next iterate over the one before the current.
-        if chebyshev {
-            std::mem::swap(&mut self.x, &mut self.prev);
-        }
-        squares
-    }
-
-    /// [`vertex_pass`](Self::vertex_pass) over several chunks.
-    fn chunked_vertices(
-        x: &mut [f32],
-        prev: &mut [f32],
-        chunk_sums: &mut Vec<f64>,
-        (parallel, level, update): (bool, Simd, Update),
-        terms: &Terms<'_>,
-        target: [&[f32]; 3],
-        data: &VertexData<'_>,
-    ) -> f64 {
-        let n = target[0].len();
-        let mut xs: [_; 3] = chunked(x, n, 0);
-        let mut prevs: [_; 3] = chunked(prev, n, 0);
-        let chunks = n.div_ceil(CHUNK);
-        chunk_sums.clear();
-        chunk_sums.resize(chunks, 0.0);
-        let work = chunk_sums.iter_mut().enumerate().map(|(c, sum)| {
-            (
-                c * CHUNK,
-                next_chunks(&mut xs),
-                next_chunks(&mut prevs),
-                sum,
-            )
-        });
-        let run = |(start, x, prev, sum): (usize, [&mut [f32]; 3], [&mut [f32]; 3], &mut f64)| {
-            *sum = vertices(
-                level,
-                &Chunk {
-                    start,
-                    terms,
-                    target,
-                    data,
-                },
-                x,
-                prev,
-                update,
-            );
-        };
-        run_chunks(parallel, n, work, run);
-        chunk_sums.iter().sum()
-    }
-
-    /// The gradient at the current positions into `out` (after a
-    /// [`spring_pass`](Self::spring_pass) there), penalty contacts included:
-    /// the vertex pass's sums, in its order; and the positions into
-    /// `positions`.
-    pub(crate) fn gradient_and_store(
-        &mut self,
-        data: &VertexData<'_>,
-        out: &mut [Vec3A],
+        iterations: u32,
+        chebyshev: bool,
+        mut next: impl FnMut(u32, f64) -> Update + Send,
+        gradient: &mut [Vec3A],
         positions: &mut [Vec3A],
     ) {
         let n = self.n;
-        let terms = Terms {
-            data: &self.terms,
+        let iterations = iterations as usize;
+        let chunks = n.div_ceil(CHUNK);
+        self.grad.resize(3 * n, 0.0);
+        self.chunk_sums.clear();
+        self.chunk_sums.resize(iterations * chunks, 0.0);
+        let gradient = &mut gradient[..n];
+        let positions = &mut positions[..n];
+        let run = Run {
+            n,
+            chunks,
+            level: simd.resolve(),
             stride: self.pad + n,
             pad: self.pad,
             offsets: &self.offsets,
+            alpha: &self.alpha,
+            beta: &self.beta,
+            target: [
+                &self.target[..n],
+                &self.target[n..2 * n],
+                &self.target[2 * n..3 * n],
+            ],
+            data,
+            chebyshev,
+            buffers: [Ptr(self.x.as_mut_ptr()), Ptr(self.prev.as_mut_ptr())],
+            terms: (Ptr(self.terms.as_mut_ptr()), self.terms.len()),
+            grad: Ptr(self.grad.as_mut_ptr()),
+            sums: Ptr64(self.chunk_sums.as_mut_ptr()),
+            gradient: PtrV(gradient.as_mut_ptr()),
+            positions: PtrV(positions.as_mut_ptr()),
         };
-        self.grad.resize(3 * n, 0.0);
-        for c in 0..3 {
-            let g = &mut self.grad[c * n..(c + 1) * n];
-            for f in 0..terms.offsets.len() {
-                let (ta, tb) = terms.runs(f, c, 0, n);
-                for i in 0..n {
-                    g[i] = if f == 0 {
-                        ta[i] - tb[i]
+        // Phases: spring pass k at 2k (k = 0..=iterations), vertex pass k at
+        // 2k + 1, the gradient at 2·iterations + 1.
+        let phases = 2 * iterations + 2;
+        let start = |phase: usize| {
+            if phase.is_multiple_of(2) || phase == phases - 1 {
+                return 0;
+            }
+            let k = phase / 2;
+            // SAFETY: every item of the passes before is done, and no item
+            // of this one has started: nothing writes the sums.
+            let squares = if k == 0 {
+                0.0
+            } else {
+                unsafe { run.sums.slice((k - 1) * chunks, chunks) }
+                    .iter()
+                    .sum()
+            };
+            encode(next(k as u32, squares))
+        };
+        run_phases(
+            parallel_pool(parallel, n),
+            phases,
+            chunks,
+            start,
+            |phase, chunk, value| {
+                let k = phase / 2;
+                // SAFETY (all three): the phases' items touch memory as
+                // [`Run`] says, and one phase runs at a time.
+                unsafe {
+                    if phase == phases - 1 {
+                        run.gradient_chunk(iterations, chunk);
+                    } else if phase.is_multiple_of(2) {
+                        run.springs_chunk(k, chunk);
                     } else {
-                        g[i] + (ta[i] - tb[i])
-                    };
+                        run.vertices_chunk(k, chunk, decode(value));
+                    }
+                }
+            },
+        );
+    }
+}
+
+/// A raw pointer to one of the workspace's arrays, shared by the items of
+/// [`StencilWorkspace::iterate`]'s phases.
+#[derive(Clone, Copy)]
+struct Ptr(*mut f32);
+#[derive(Clone, Copy)]
+struct Ptr64(*mut f64);
+#[derive(Clone, Copy)]
+struct PtrV(*mut Vec3A);
+
+// SAFETY: the items that share them write disjoint chunks, and read only
+// what no item of their phase writes (see `Run`).
+unsafe impl Send for Ptr {}
+unsafe impl Sync for Ptr {}
+unsafe impl Send for Ptr64 {}
+unsafe impl Sync for Ptr64 {}
+unsafe impl Send for PtrV {}
+unsafe impl Sync for PtrV {}
+
+impl Ptr {
+    /// # Safety
+    /// `at + len` within the array, and nothing writes it meanwhile.
+    unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
+        unsafe { std::slice::from_raw_parts(self.0.add(at), len) }
+    }
+
+    /// # Safety
+    /// `at + len` within the array, and nothing else reads or writes it
+    /// meanwhile.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn slice_mut<'a>(self, at: usize, len: usize) -> &'a mut [f32] {
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(at), len) }
+    }
+}
+
+impl Ptr64 {
+    /// # Safety
+    /// As [`Ptr::slice`].
+    unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f64] {
+        unsafe { std::slice::from_raw_parts(self.0.add(at), len) }
+    }
+}
+
+/// An [`Update`] as the `u64` a phase's start hands its items.
+fn encode(update: Update) -> u64 {
+    match update {
+        Update::Jacobi => 0,
+        Update::Chebyshev { omega, measure } => {
+            1 << 32 | u64::from(measure) << 33 | u64::from(omega.to_bits())
+        }
+    }
+}
+
+fn decode(value: u64) -> Update {
+    if value & 1 << 32 == 0 {
+        Update::Jacobi
+    } else {
+        Update::Chebyshev {
+            omega: f32::from_bits(value as u32),
+            measure: value & 1 << 33 != 0,
+        }
+    }
+}
+
+/// One [`StencilWorkspace::iterate`]: what its items read, and the arrays
+/// they write through raw pointers. Spring pass `k` reads positions buffer
+/// [`current(k)`](Self::current) and writes the terms; vertex pass `k`
+/// reads the terms and writes buffer `current(k)` (Jacobi) or the other
+/// one (Chebyshev), and the sums of iteration `k`; the gradient phase reads
+/// the terms and `current(iterations)` and writes `grad`, `gradient` and
+/// `positions`. Every item writes only its own chunk's part.
+struct Run<'a> {
+    n: usize,
+    chunks: usize,
+    level: Simd,
+    stride: usize,
+    pad: usize,
+    offsets: &'a [usize],
+    alpha: &'a [f32],
+    beta: &'a [f32],
+    target: [&'a [f32]; 3],
+    data: &'a VertexData<'a>,
+    chebyshev: bool,
+    /// The positions and the previous iterate, `[x…, y…, z…]` each.
+    buffers: [Ptr; 2],
+    terms: (Ptr, usize),
+    grad: Ptr,
+    /// Per iteration and chunk, the sum of squared steps.
+    sums: Ptr64,
+    gradient: PtrV,
+    positions: PtrV,
+}
+
+impl Run<'_> {
+    /// The buffer that holds iterate `k` (Chebyshev's alternate).
+    fn current(&self, k: usize) -> Ptr {
+        self.buffers[if self.chebyshev { k % 2 } else { 0 }]
+    }
+
+    /// Chunk `c`'s first vertex and length.
+    fn span(&self, c: usize) -> (usize, usize) {
+        let start = c * CHUNK;
+        (start, CHUNK.min(self.n - start))
+    }
+
+    /// The terms, whole, for the phases that only read them.
+    ///
+    /// # Safety
+    /// Nothing writes the terms meanwhile.
+    unsafe fn terms(&self) -> Terms<'_> {
+        Terms {
+            data: unsafe { self.terms.0.slice(0, self.terms.1) },
+            stride: self.stride,
+            pad: self.pad,
+            offsets: self.offsets,
+        }
+    }
+
+    /// Spring pass `k`, chunk `c`: every spring's term `d·(α − β/l)`.
+    ///
+    /// # Safety
+    /// Runs in spring phase `k`.
+    unsafe fn springs_chunk(&self, k: usize, c: usize) {
+        let (n, x) = (self.n, self.current(k));
+        let (start, len) = self.span(c);
+        for (f, &o) in self.offsets.iter().enumerate() {
+            // Springs start at `a < n − o`.
+            let m = (n - o).saturating_sub(start).min(len);
+            let coeff = f * n + start..f * n + start + m;
+            // SAFETY: in a spring phase nothing writes the positions (and
+            // `start + o + m ≤ n`); chunk `c`'s terms are this item's.
+            let ends = |comp: usize| unsafe {
+                (
+                    x.slice(comp * n + start, m),
+                    x.slice(comp * n + start + o, m),
+                )
+            };
+            let [tx, ty, tz] = [0, 1, 2].map(|comp| unsafe {
+                self.terms
+                    .0
+                    .slice_mut((3 * f + comp) * self.stride + self.pad + start, len)
+            });
+            springs(
+                self.level,
+                [ends(0), ends(1), ends(2)],
+                (&self.alpha[coeff.clone()], &self.beta[coeff]),
+                [&mut tx[..m], &mut ty[..m], &mut tz[..m]],
+            );
+            for t in [tx, ty, tz] {
+                t[m..].fill(0.0);
+            }
+        }
+    }
+
+    /// Vertex pass `k`, chunk `c`, with `update`; its sum of squared steps
+    /// into the sums.
+    ///
+    /// # Safety
+    /// Runs in vertex phase `k`.
+    unsafe fn vertices_chunk(&self, k: usize, c: usize, update: Update) {
+        let n = self.n;
+        let (start, len) = self.span(c);
+        // SAFETY: in a vertex phase nothing writes the terms; the chunk's
+        // positions, previous iterate and sum are this item's.
+        let terms = unsafe { self.terms() };
+        let (x, other) = (self.current(k), self.buffers[1 - k % 2]);
+        let xs = [0, 1, 2].map(|comp| unsafe { x.slice_mut(comp * n + start, len) });
+        let prev = if self.chebyshev {
+            [0, 1, 2].map(|comp| unsafe { other.slice_mut(comp * n + start, len) })
+        } else {
+            Default::default()
+        };
+        let chunk = Chunk {
+            start,
+            terms: &terms,
+            target: self.target,
+            data: self.data,
+        };
+        let squares = vertices(self.level, &chunk, xs, prev, update);
+        unsafe { *self.sums.0.add(k * self.chunks + c) = squares };
+    }
+
+    /// The gradient at iterate `k` (after its spring pass), chunk `c`, and
+    /// the positions, into `gradient` and `positions`.
+    ///
+    /// # Safety
+    /// Runs in the gradient phase, after spring pass `k`.
+    unsafe fn gradient_chunk(&self, k: usize, c: usize) {
+        let (n, x) = (self.n, self.current(k));
+        let (start, len) = self.span(c);
+        // SAFETY: nothing writes the terms or positions in this phase; the
+        // chunk's gradient and outputs are this item's.
+        let terms = unsafe { self.terms() };
+        let mass = &self.data.mass_term[start..start + len];
+        let xs = [0, 1, 2].map(|comp| unsafe { x.slice(comp * n + start, len) });
+        let mut gs = [0, 1, 2].map(|comp| unsafe { self.grad.slice_mut(comp * n + start, len) });
+        for (comp, g) in gs.iter_mut().enumerate() {
+            for f in 0..terms.offsets.len() {
+                let (ta, tb) = terms.runs(f, comp, start, len);
+                if f == 0 {
+                    for i in 0..len {
+                        g[i] = ta[i] - tb[i];
+                    }
+                } else {
+                    for i in 0..len {
+                        g[i] += ta[i] - tb[i];
+                    }
                 }
             }
-            let (x, t) = (
-                &self.x[c * n..(c + 1) * n],
-                &self.target[c * n..(c + 1) * n],
-            );
-            let mass = &data.mass_term[..n];
-            for i in 0..n {
-                g[i] += (x[i] - t[i]) * mass[i];
+            let (xc, tc) = (xs[comp], &self.target[comp][start..start + len]);
+            for i in 0..len {
+                g[i] += (xc[i] - tc[i]) * mass[i];
             }
         }
-        let (g, x) = (&self.grad, &self.x);
-        let (gx, gy, gz) = (&g[..n], &g[n..2 * n], &g[2 * n..3 * n]);
-        let (px, py, pz) = (&x[..n], &x[n..2 * n], &x[2 * n..3 * n]);
-        for (i, (out, xo)) in out[..n].iter_mut().zip(&mut positions[..n]).enumerate() {
-            *out = Vec3A::new(gx[i], gy[i], gz[i]);
-            *xo = Vec3A::new(px[i], py[i], pz[i]);
+        let (gradient, positions) = unsafe {
+            (
+                std::slice::from_raw_parts_mut(self.gradient.0.add(start), len),
+                std::slice::from_raw_parts_mut(self.positions.0.add(start), len),
+            )
+        };
+        for (i, (out, xo)) in gradient.iter_mut().zip(positions.iter_mut()).enumerate() {
+            *out = Vec3A::new(gs[0][i], gs[1][i], gs[2][i]);
+            *xo = Vec3A::new(xs[0][i], xs[1][i], xs[2][i]);
         }
-        if !data.spheres.is_empty() {
-            for (i, out) in out[..n].iter_mut().enumerate() {
-                if !data.pinned[i] {
-                    for sphere in data.spheres {
+        if !self.data.spheres.is_empty() {
+            for (i, out) in gradient.iter_mut().enumerate() {
+                if !self.data.pinned[start + i] {
+                    for sphere in self.data.spheres {
                         if let Some(contact) = sphere.contact(positions[i]) {
                             *out -= contact.force;
                         }
@@ -406,64 +536,6 @@ impl StencilWorkspace {
                 }
             }
         }
-    }
-}
-
-/// `data` (`3n` long, or empty) as its three rows of `n` (three empty
-/// slices if it is empty).
-fn thirds(data: &mut [f32], n: usize) -> [&mut [f32]; 3] {
-    if data.is_empty() {
-        return Default::default();
-    }
-    let (a, rest) = data.split_at_mut(n);
-    let (b, c) = rest.split_at_mut(n);
-    [a, b, &mut c[..n]]
-}
-
-/// The first `K` rows of `data` (each `stride` long, its first `skip`
-/// entries left out) as iterators over vertex chunks; `None` past the rows
-/// `data` has.
-fn chunked<const K: usize>(
-    data: &mut [f32],
-    stride: usize,
-    skip: usize,
-) -> [Option<std::slice::ChunksMut<'_, f32>>; K] {
-    let mut rows = data.chunks_mut(stride.max(1));
-    std::array::from_fn(|_| rows.next().map(|r| r[skip..].chunks_mut(CHUNK)))
-}
-
-/// The next chunk of every row of [`chunked`] (empty for a missing row).
-fn next_chunks<'a, const K: usize>(
-    rows: &mut [Option<std::slice::ChunksMut<'a, f32>>; K],
-) -> [&'a mut [f32]; K] {
-    std::array::from_fn(|j| {
-        rows[j]
-            .as_mut()
-            .and_then(Iterator::next)
-            .unwrap_or_default()
-    })
-}
-
-/// Runs `run` on every item of `work` (one per vertex chunk of a cloth of
-/// `n` vertices): on Bevy's compute pool when `parallel` allows (see
-/// [`parallel_pool`]), else in order. Each item owns what it writes, so
-/// the result is the same either way.
-fn run_chunks<T: Send>(
-    parallel: bool,
-    n: usize,
-    work: impl Iterator<Item = T>,
-    run: impl Fn(T) + Sync,
-) {
-    match parallel_pool(parallel, n) {
-        Some(pool) => {
-            pool.scope(|scope| {
-                let run = &run;
-                for item in work {
-                    scope.spawn(async move { run(item) });
-                }
-            });
-        }
-        None => work.for_each(run),
     }
 }
 

@@ -170,14 +170,20 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
     let model = ClothBuilder::lab_grid(185).build().unwrap();
     assert!(model.vertex_count() >= PARALLEL_MIN);
     let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-    for method in METHODS {
+    // With and without a penalty sphere the sheet falls into.
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
+    for (method, spheres) in METHODS
+        .into_iter()
+        .flat_map(|m| [(m, &[][..]), (m, std::slice::from_ref(&sphere))])
+    {
         let of = |simd, parallel| {
             let params = StepParams {
                 simd,
                 parallel,
                 ..StepParams::LAB
             };
-            bits(&run(method, &model, &start, &params, &[], 2).0)
+            let (state, report) = run(method, &model, &start, &params, spheres, 2);
+            (bits(&state), report.residual.map(f32::to_bits))
         };
         let reference = of(Simd::Baseline, false);
         assert_eq!(of(Simd::Baseline, false), reference, "run after run");
