@@ -209,18 +209,16 @@ pub(crate) fn project_running_cloths(
     if dt <= 0.0 {
         return;
     }
-    cloths
-        .par_iter_mut()
-        .for_each(|(mut cloth, params, mut stats)| {
-            if !cloth.initialized || !stats.is_running() {
-                return;
-            }
-            let cloth = &mut *cloth;
-            // The guard checks the projected state again in `SyncOut`.
-            cloth.measured = None;
-            let contacts = project(&cloth.model, &mut cloth.state, params.particle_radius, dt);
-            stats.contacts += contacts as u32;
-        });
+    for_each_cloth!(cloths, |(mut cloth, params, mut stats)| {
+        if !cloth.initialized || !stats.is_running() {
+            return;
+        }
+        let cloth = &mut *cloth;
+        // The guard checks the projected state again in `SyncOut`.
+        cloth.measured = None;
+        let contacts = project(&cloth.model, &mut cloth.state, params.particle_radius, dt);
+        stats.contacts += contacts as u32;
+    });
 }
 
 /// A half-space every cloth collides with: the ground, a floor, a slope. Its

@@ -195,7 +195,7 @@ fn place_and_pin(
     mut cloths: Query<(Entity, &mut Cloth)>,
 ) {
     let dt = time.delta_secs();
-    cloths.par_iter_mut().for_each(|(entity, mut cloth)| {
+    for_each_cloth!(cloths, |(entity, mut cloth)| {
         let cloth = &mut *cloth;
         cloth.claimed = false;
         let Ok(global) = helper.compute_global_transform(entity) else {
@@ -279,92 +279,97 @@ fn guard_and_measure(
     if dt <= 0.0 {
         return;
     }
-    cloths
-        .par_iter_mut()
-        .for_each(|(entity, mut cloth, params, guard, mut stats, method)| {
-            let cloth = &mut *cloth;
-            if !cloth.claimed {
-                let method = AnyMethod::from_item(method).map(|m| m.name());
-                if stats.status != (ClothStatus::NoMethod { method }) {
-                    match method {
-                        Some(name) => warn!(
-                            "cloth {entity} is not simulated: its method '{name}' has no plugin \
+    for_each_cloth!(cloths, |(
+        entity,
+        mut cloth,
+        params,
+        guard,
+        mut stats,
+        method,
+    )| {
+        let cloth = &mut *cloth;
+        if !cloth.claimed {
+            let method = AnyMethod::from_item(method).map(|m| m.name());
+            if stats.status != (ClothStatus::NoMethod { method }) {
+                match method {
+                    Some(name) => warn!(
+                        "cloth {entity} is not simulated: its method '{name}' has no plugin \
                              in this app; add its plugin (or `ClothPlugins`)"
-                        ),
-                        None => warn!(
-                            "cloth {entity} is not simulated: it has no method component; \
+                    ),
+                    None => warn!(
+                        "cloth {entity} is not simulated: it has no method component; \
                              insert one, e.g. `ImplicitSolver::default()`"
-                        ),
-                    }
-                    stats.status = ClothStatus::NoMethod { method };
+                    ),
                 }
-                return;
+                stats.status = ClothStatus::NoMethod { method };
             }
-            if let Some(relative_error) = cloth.not_converged.take() {
-                let message = ClothNotConverged {
-                    entity,
-                    method: stats.method,
-                    iterations: stats.iterations,
-                    relative_error,
-                    tolerance: guard.convergence_tolerance,
-                    step: stats.steps,
-                };
-                warn!("{message}");
-                unconverged.borrow_local_mut().push(message);
+            return;
+        }
+        if let Some(relative_error) = cloth.not_converged.take() {
+            let message = ClothNotConverged {
+                entity,
+                method: stats.method,
+                iterations: stats.iterations,
+                relative_error,
+                tolerance: guard.convergence_tolerance,
+                step: stats.steps,
+            };
+            warn!("{message}");
+            unconverged.borrow_local_mut().push(message);
+        }
+        if let Some((reason, action)) = cloth.event.take() {
+            diverged.borrow_local_mut().push(ClothDiverged {
+                entity,
+                method: stats.method,
+                reason,
+                action,
+                step: stats.steps,
+            });
+        }
+        if !cloth.initialized || !stats.is_running() {
+            return;
+        }
+        let mut params = params.step_params(dt);
+        // What the step's own guard check measured, if nothing has
+        // touched the state since (collision and `Cloth::state_mut` drop
+        // it): the same check on the same state, so it is not done twice.
+        let stiffness_ok = params.stiffness.validate().is_ok();
+        let result = match cloth.measured.take() {
+            Some(measured) if stiffness_ok => Ok(measured),
+            _ => {
+                if !stiffness_ok {
+                    // A method that ignores stiffness (PBD) runs with any;
+                    // its energy then has no spring term rather than a NaN.
+                    params.stiffness = solver::SpringStiffness::uniform(0.0);
+                }
+                guard
+                    .bounds
+                    .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
             }
-            if let Some((reason, action)) = cloth.event.take() {
+        };
+        match result {
+            Ok(measured) => {
+                stats.max_stretch = measured.max_stretch;
+                stats.energy = measured.energy;
+            }
+            Err(reason) => {
+                cloth.state.copy_from(&cloth.last_good);
+                stats.status = ClothStatus::Diverged(reason);
+                warn!(
+                    "cloth {entity} diverged after collision under method '{}' at step {}: \
+                         {reason:?}; restored its last good state and stopped it",
+                    stats.method, stats.steps
+                );
                 diverged.borrow_local_mut().push(ClothDiverged {
                     entity,
                     method: stats.method,
                     reason,
-                    action,
+                    action: GuardAction::Paused,
                     step: stats.steps,
                 });
             }
-            if !cloth.initialized || !stats.is_running() {
-                return;
-            }
-            let mut params = params.step_params(dt);
-            // What the step's own guard check measured, if nothing has
-            // touched the state since (collision and `Cloth::state_mut` drop
-            // it): the same check on the same state, so it is not done twice.
-            let stiffness_ok = params.stiffness.validate().is_ok();
-            let result = match cloth.measured.take() {
-                Some(measured) if stiffness_ok => Ok(measured),
-                _ => {
-                    if !stiffness_ok {
-                        // A method that ignores stiffness (PBD) runs with any;
-                        // its energy then has no spring term rather than a NaN.
-                        params.stiffness = solver::SpringStiffness::uniform(0.0);
-                    }
-                    guard
-                        .bounds
-                        .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
-                }
-            };
-            match result {
-                Ok(measured) => {
-                    stats.max_stretch = measured.max_stretch;
-                    stats.energy = measured.energy;
-                }
-                Err(reason) => {
-                    cloth.state.copy_from(&cloth.last_good);
-                    stats.status = ClothStatus::Diverged(reason);
-                    warn!(
-                        "cloth {entity} diverged after collision under method '{}' at step {}: \
-                         {reason:?}; restored its last good state and stopped it",
-                        stats.method, stats.steps
-                    );
-                    diverged.borrow_local_mut().push(ClothDiverged {
-                        entity,
-                        method: stats.method,
-                        reason,
-                        action: GuardAction::Paused,
-                        step: stats.steps,
-                    });
-                }
-            }
-        });
+        }
+    });
     let mut found: Vec<ClothDiverged> = diverged.drain().collect();
     found.sort_by_key(|d| d.entity);
     messages.write_batch(found);

@@ -215,117 +215,123 @@ fn step_cloths<M: ClothMethod>(
     if dt <= 0.0 {
         return;
     }
-    cloths.par_iter_mut().for_each(
-        |(entity, mut cloth, params, guard, method, mut ws, mut stats)| {
-            cloth.claimed = true;
-            stats.contacts = 0;
-            if method.is_changed() || params.is_changed() {
-                cloth.convergence_reported = false;
-            }
-            if !stats.method.is_empty() && stats.method != method.name() {
-                // Another method: what the guard and the stats said of the old
-                // one does not carry over.
-                stats.clear();
-                cloth.guard_memory = Default::default();
-            }
-            if let ClothStatus::NoMethod { .. } = stats.status {
-                stats.status = ClothStatus::Running;
-            }
-            if !cloth.initialized || matches!(stats.status, ClothStatus::Diverged(_)) {
-                return;
-            }
-            if let Err(error) = params.validate().and_then(|()| guard.validate()) {
-                refuse(entity, method.name(), &mut stats, error.into());
-                return;
-            }
-            let cloth = &mut *cloth;
-            let particle_radius = params.particle_radius;
-            let params = params.step_params(dt);
-            let ws = &mut *ws;
-            ws.penalty.clear();
-            ws.penalty.extend(
-                colliders
-                    .penalty
+    for_each_cloth!(cloths, |(
+        entity,
+        mut cloth,
+        params,
+        guard,
+        method,
+        mut ws,
+        mut stats,
+    )| {
+        cloth.claimed = true;
+        stats.contacts = 0;
+        if method.is_changed() || params.is_changed() {
+            cloth.convergence_reported = false;
+        }
+        if !stats.method.is_empty() && stats.method != method.name() {
+            // Another method: what the guard and the stats said of the old
+            // one does not carry over.
+            stats.clear();
+            cloth.guard_memory = Default::default();
+        }
+        if let ClothStatus::NoMethod { .. } = stats.status {
+            stats.status = ClothStatus::Running;
+        }
+        if !cloth.initialized || matches!(stats.status, ClothStatus::Diverged(_)) {
+            return;
+        }
+        if let Err(error) = params.validate().and_then(|()| guard.validate()) {
+            refuse(entity, method.name(), &mut stats, error.into());
+            return;
+        }
+        let cloth = &mut *cloth;
+        let particle_radius = params.particle_radius;
+        let params = params.step_params(dt);
+        let ws = &mut *ws;
+        ws.penalty.clear();
+        ws.penalty.extend(
+            colliders
+                .penalty
+                .iter()
+                .chain(&colliders.penalty_shapes)
+                .map(|s| s.grown(particle_radius)),
+        );
+        let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
+        let model = &cloth.model;
+        let method = &*method;
+        let start = Instant::now();
+        cloth.measured = None;
+        let result = guarded_step(
+            &guard.bounds,
+            guard.policy,
+            &mut cloth.guard_memory,
+            model,
+            &mut cloth.state,
+            &mut cloth.last_good,
+            &params,
+            |state, p| method.step(model, state, p, penalty, solver_ws),
+        );
+        let elapsed = start.elapsed();
+        stats.method = method.name();
+        match result {
+            Ok(done) => {
+                // Penalty contacts (projection contacts are counted by the
+                // collision system, which adds to these).
+                stats.contacts += penalty
                     .iter()
-                    .chain(&colliders.penalty_shapes)
-                    .map(|s| s.grown(particle_radius)),
-            );
-            let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
-            let model = &cloth.model;
-            let method = &*method;
-            let start = Instant::now();
-            cloth.measured = None;
-            let result = guarded_step(
-                &guard.bounds,
-                guard.policy,
-                &mut cloth.guard_memory,
-                model,
-                &mut cloth.state,
-                &mut cloth.last_good,
-                &params,
-                |state, p| method.step(model, state, p, penalty, solver_ws),
-            );
-            let elapsed = start.elapsed();
-            stats.method = method.name();
-            match result {
-                Ok(done) => {
-                    // Penalty contacts (projection contacts are counted by the
-                    // collision system, which adds to these).
-                    stats.contacts += penalty
-                        .iter()
-                        .map(|s| {
-                            cloth
-                                .state
-                                .positions
-                                .iter()
-                                .zip(model.pinned())
-                                .filter(|&(&x, &pinned)| !pinned && s.contact(x).is_some())
-                                .count() as u32
-                        })
-                        .sum::<u32>();
-                    stats.steps += 1;
-                    stats.step_time = elapsed;
-                    stats.iterations = done.report.iterations;
-                    stats.residual = done.report.residual;
-                    stats.relative_error = done.report.relative_error;
-                    stats.converged = done
-                        .report
-                        .relative_error
-                        .is_none_or(|e| e <= guard.convergence_tolerance);
-                    if !stats.converged {
-                        stats.unconverged_steps += 1;
-                        if !cloth.convergence_reported {
-                            cloth.convergence_reported = true;
-                            cloth.not_converged = done.report.relative_error;
-                        }
-                    }
-                    stats.substeps = done.substeps;
-                    cloth.measured = Some(done.measured);
-                    if let Some(reason) = done.retried_because {
-                        stats.retried_steps += 1;
-                        cloth.event = Some((
-                            reason,
-                            GuardAction::Recovered {
-                                substeps: done.substeps,
-                            },
-                        ));
-                    }
-                    if !stats.is_running() {
-                        stats.status = ClothStatus::Running;
+                    .map(|s| {
+                        cloth
+                            .state
+                            .positions
+                            .iter()
+                            .zip(model.pinned())
+                            .filter(|&(&x, &pinned)| !pinned && s.contact(x).is_some())
+                            .count() as u32
+                    })
+                    .sum::<u32>();
+                stats.steps += 1;
+                stats.step_time = elapsed;
+                stats.iterations = done.report.iterations;
+                stats.residual = done.report.residual;
+                stats.relative_error = done.report.relative_error;
+                stats.converged = done
+                    .report
+                    .relative_error
+                    .is_none_or(|e| e <= guard.convergence_tolerance);
+                if !stats.converged {
+                    stats.unconverged_steps += 1;
+                    if !cloth.convergence_reported {
+                        cloth.convergence_reported = true;
+                        cloth.not_converged = done.report.relative_error;
                     }
                 }
-                Err(GuardError::Diverged { reason, halvings }) => {
-                    warn!(
-                        "cloth {entity} stopped: the '{}' step diverged at step {} ({reason:?}, \
-                         {halvings} halvings tried); restored its last good state",
-                        method.name(),
-                        stats.steps
-                    );
-                    stats.status = ClothStatus::Diverged(reason);
-                    cloth.event = Some((reason, GuardAction::Paused));
+                stats.substeps = done.substeps;
+                cloth.measured = Some(done.measured);
+                if let Some(reason) = done.retried_because {
+                    stats.retried_steps += 1;
+                    cloth.event = Some((
+                        reason,
+                        GuardAction::Recovered {
+                            substeps: done.substeps,
+                        },
+                    ));
                 }
-                Err(GuardError::Refused(error)) => refuse(entity, method.name(), &mut stats, error),
+                if !stats.is_running() {
+                    stats.status = ClothStatus::Running;
+                }
             }
-        },
-    );
+            Err(GuardError::Diverged { reason, halvings }) => {
+                warn!(
+                    "cloth {entity} stopped: the '{}' step diverged at step {} ({reason:?}, \
+                         {halvings} halvings tried); restored its last good state",
+                    method.name(),
+                    stats.steps
+                );
+                stats.status = ClothStatus::Diverged(reason);
+                cloth.event = Some((reason, GuardAction::Paused));
+            }
+            Err(GuardError::Refused(error)) => refuse(entity, method.name(), &mut stats, error),
+        }
+    },);
 }

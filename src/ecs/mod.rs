@@ -35,6 +35,22 @@ macro_rules! scheduled_plugin {
 #[cfg(feature = "avian")]
 pub(crate) use scheduled_plugin;
 
+/// Runs the closure `$f` on every item of the query `$q`: on the compute
+/// pool (`par_iter_mut`) when it has two items or more, else on this
+/// thread. Bevy's `par_iter_mut` hands even a single item to a pool task
+/// when the pool has several threads, and that handoff (tens of µs on the
+/// perf page's machine) is most of a one-cloth frame's overhead. (A macro:
+/// the closure is typed once per loop.)
+macro_rules! for_each_cloth {
+    ($q:expr, $f:expr $(,)?) => {
+        if $q.iter().nth(1).is_some() {
+            $q.par_iter_mut().for_each($f)
+        } else {
+            $q.iter_mut().for_each($f)
+        }
+    };
+}
+
 mod attach;
 mod collision;
 mod components;

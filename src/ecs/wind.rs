@@ -159,27 +159,25 @@ fn blow(
     let BlowMemory {
         scratch, refused, ..
     } = &mut *memory;
-    cloths
-        .par_iter_mut()
-        .for_each(|(entity, mut cloth, stats, aero)| {
-            if !cloth.initialized || !stats.is_running() {
-                return;
-            }
-            let coefficients = aero.copied().unwrap_or_default().coefficients();
-            if coefficients.validate().is_err() {
-                refused.borrow_local_mut().push(entity);
-                return;
-            }
-            let cloth = &mut *cloth;
-            apply_air(
-                &cloth.model,
-                &mut cloth.state,
-                &coefficients,
-                |x| field.at(x, t),
-                dt,
-                &mut scratch.borrow_local_mut(),
-            );
-        });
+    for_each_cloth!(cloths, |(entity, mut cloth, stats, aero)| {
+        if !cloth.initialized || !stats.is_running() {
+            return;
+        }
+        let coefficients = aero.copied().unwrap_or_default().coefficients();
+        if coefficients.validate().is_err() {
+            refused.borrow_local_mut().push(entity);
+            return;
+        }
+        let cloth = &mut *cloth;
+        apply_air(
+            &cloth.model,
+            &mut cloth.state,
+            &coefficients,
+            |x| field.at(x, t),
+            dt,
+            &mut scratch.borrow_local_mut(),
+        );
+    });
     let mut refused: Vec<Entity> = memory.refused.drain().collect();
     refused.sort();
     for entity in refused {

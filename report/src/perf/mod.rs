@@ -198,6 +198,9 @@ mod tests {
             assert!(md.contains(&format!("| {name} |")), "{name}");
         }
         assert!(!md.contains("⚠"), "{md}");
+        // The sentences that name the lab step's case found it.
+        assert!(md.contains("Chebyshev 32 at 11²:"), "{md}");
+        assert!(md.contains("its cost − the bare step ("), "{md}");
         // The arithmetic limit is measured at the widest level this CPU
         // runs, and the triads at every level it runs.
         let levels = bevy_cloth::solver::Simd::supported();

@@ -8,6 +8,9 @@ use plotters::prelude::*;
 
 use super::*;
 
+/// The sweep's name for the lab step, Chebyshev 32.
+const LAB_CASE: &str = "chebyshev 32";
+
 /// Runs the page and writes its files. Returns the markdown.
 pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<String> {
     std::fs::create_dir_all(&config.out_dir)?;
@@ -125,7 +128,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     if let Some(big) = cases
         .iter()
-        .filter(|c| c.method == "Chebyshev 32")
+        .filter(|c| c.method == LAB_CASE)
         .max_by_key(|c| c.n)
     {
         let best = big
@@ -199,7 +202,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     let single = cases
         .iter()
-        .find(|c| c.method == "Chebyshev 32" && c.n == 21)
+        .find(|c| c.method == LAB_CASE && c.n == 21)
         .map(|c| c.serial.median);
     writeln!(
         w,
@@ -247,7 +250,8 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
     writeln!(w).ok();
     writeln!(
         w,
-        "| executor | Bevy's frame | with one cloth | the cloth's cost | its cost − the bare step |"
+        "| executor | Bevy's frame | with one cloth | the cloth's cost | its cost − the bare step ({}) |",
+        human(frame.step.median)
     )
     .ok();
     writeln!(w, "|---|---|---|---|---|").ok();
@@ -256,7 +260,7 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         ("single-threaded", frame.bare_single, frame.one_single),
     ] {
         let cost = one.median - bare.median;
-        let over = single.map_or("–".to_string(), |s| human(cost - s));
+        let over = human(cost - frame.step.median);
         writeln!(
             w,
             "| {name} | {} | {} | {} | {over} |",

@@ -259,6 +259,9 @@ pub struct FrameCosts {
     pub bare_single: Timing,
     /// [`one`](Self::one), every schedule single-threaded.
     pub one_single: Timing,
+    /// The lab cloth's bare step (Chebyshev 32, one thread), timed in the
+    /// same turns.
+    pub step: Timing,
 }
 
 /// Times the four apps of [`FrameCosts`] in turns, so that the machine's
@@ -270,7 +273,18 @@ pub fn frame_costs(config: &PerfConfig) -> FrameCosts {
         lab_app(None, true),
         lab_app(Some(1), true),
     ];
-    let t = interleaved(config, &[0, 1, 2, 3], |a| {
+    let model = ClothBuilder::lab().build().expect("the lab cloth");
+    let params = StepParams {
+        parallel: false,
+        ..StepParams::LAB
+    };
+    let start = warm_state(&model, &params);
+    let method = AnyMethod::Implicit(ImplicitSolver::chebyshev(LAB_ITERATIONS, LAB_RHO));
+    let mut stepper = Stepper::new(method, &model, &start);
+    let t = interleaved(config, &[0, 1, 2, 3, 4], |a| {
+        if a == 4 {
+            return stepper.time(&params);
+        }
         let t = Instant::now();
         apps[a].update();
         t.elapsed().as_secs_f64()
@@ -280,6 +294,7 @@ pub fn frame_costs(config: &PerfConfig) -> FrameCosts {
         one: t[1],
         bare_single: t[2],
         one_single: t[3],
+        step: t[4],
     }
 }
 
