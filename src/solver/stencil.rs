@@ -53,8 +53,11 @@ const NONE: u8 = 3;
 
 /// A cloth's springs as offset families (see the [module docs](self)), or
 /// nothing when they do not form a stencil.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct Stencil {
+    /// Unique per built stencil (clones share it: same contents), so a
+    /// workspace can tell that its coefficients are this stencil's.
+    id: u64,
     /// The families' offsets `o`, increasing.
     offsets: Vec<usize>,
     /// Per family, per vertex `a`: the kind of the spring `(a, a + o)`
@@ -63,6 +66,13 @@ pub(crate) struct Stencil {
     kinds: Vec<u8>,
     /// Per family, per vertex: that spring's rest length (0 for none).
     rest: Vec<f32>,
+}
+
+/// Equal contents (the [`id`](Stencil::id) aside).
+impl PartialEq for Stencil {
+    fn eq(&self, other: &Self) -> bool {
+        (&self.offsets, &self.kinds, &self.rest) == (&other.offsets, &other.kinds, &other.rest)
+    }
 }
 
 impl Stencil {
@@ -85,7 +95,9 @@ impl Stencil {
         if 2 * springs.len() < families * n {
             return None;
         }
+        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         let mut stencil = Self {
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             offsets: by_offset.keys().copied().collect(),
             kinds: vec![NONE; families * n],
             rest: vec![0.0; families * n],
@@ -148,6 +160,8 @@ pub(crate) struct StencilWorkspace {
     /// where there is none); `n` entries per family.
     alpha: Vec<f32>,
     beta: Vec<f32>,
+    /// The stencil's id and the stiffness bits `alpha` and `beta` are for.
+    coefficients: Option<(u64, [u32; 3])>,
     /// `[x…, y…, z…]`, `n` each.
     x: Vec<f32>,
     prev: Vec<f32>,
@@ -180,15 +194,20 @@ impl StencilWorkspace {
         self.n = n;
         self.pad = stencil.max_offset();
         self.offsets.clone_from(&stencil.offsets);
-        // Per kind, and 0 where no spring starts (NONE = 3).
-        let k = [k[0], k[1], k[2], 0.0];
-        self.alpha.clear();
-        self.alpha
-            .extend(stencil.kinds.iter().map(|&kind| k[usize::from(kind & 3)]));
-        self.beta.clear();
-        // `k·L`, as the general kernels' coefficients.
-        self.beta
-            .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
+        // The coefficients change only with the stiffness (or the cloth).
+        let key = (stencil.id, k.map(f32::to_bits));
+        if self.coefficients != Some(key) {
+            // Per kind, and 0 where no spring starts (NONE = 3).
+            let k = [k[0], k[1], k[2], 0.0];
+            self.alpha.clear();
+            self.alpha
+                .extend(stencil.kinds.iter().map(|&kind| k[usize::from(kind & 3)]));
+            self.beta.clear();
+            // `k·L`, as the general kernels' coefficients.
+            self.beta
+                .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
+            self.coefficients = Some(key);
+        }
         to_soa(x, &mut self.x);
         self.target.clear();
         for (c, o) in offset.to_array().into_iter().enumerate() {

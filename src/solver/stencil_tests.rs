@@ -6,7 +6,7 @@ use crate::collision::PenaltySphere;
 use crate::methods::{AnyMethod, AnyWorkspace};
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::implicit::ImplicitSolver;
-use crate::solver::{Method, PARALLEL_MIN, Simd, StepParams, StepReport};
+use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
 
 /// The implicit methods the stencil kernels run.
 const METHODS: [ImplicitSolver; 3] = [
@@ -196,5 +196,39 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
                 );
             }
         }
+    }
+}
+
+#[test]
+fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
+    let lab = ClothBuilder::lab().build().unwrap();
+    // The same grid over a smaller square: other rest lengths.
+    let other = ClothBuilder::grid(
+        21,
+        21,
+        Vec3::new(2.0, 0.0, 2.0),
+        Vec3::new(-2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, -2.0),
+    )
+    .with_pins([0, 20])
+    .build()
+    .unwrap();
+    let stiff = StepParams {
+        stiffness: SpringStiffness::uniform(1e5),
+        ..StepParams::LAB
+    };
+    let method = AnyMethod::Implicit(METHODS[1]);
+    // One workspace through a soft step of the lab cloth, a stiff one, and
+    // a step of a cloth with the same grid and other rest lengths; each must
+    // equal the same step on a fresh workspace (coefficients rebuilt).
+    let mut ws = AnyWorkspace::default();
+    for (model, params) in [(&lab, &StepParams::LAB), (&lab, &stiff), (&other, &stiff)] {
+        let start = ClothState::at_rest(model, &Affine3A::IDENTITY);
+        let mut reused = start.clone();
+        method
+            .step(model, &mut reused, params, &[], &mut ws)
+            .unwrap();
+        let (fresh, _) = run(METHODS[1], model, &start, params, &[], 1);
+        assert_eq!(bits(&reused), bits(&fresh));
     }
 }
