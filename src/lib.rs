@@ -192,20 +192,31 @@
 //!   the mean distance (a shuffled 101² or 256² grid mesh stepped 2.7–2.9×
 //!   slower before; [`model::ClothModel::welded_from`] maps mesh vertices
 //!   to cloth vertices, and pins, masses and the mesh write-back follow it).
-//! - Parallelism: cloths step in parallel across Bevy's compute pool
-//!   (`par_iter_mut`); a large cloth (at least [`solver::PARALLEL_MIN`]
-//!   springs or vertices) splits its loops in fixed chunks on the same pool
-//!   when it has more than one thread. Results are bitwise the same either
-//!   way ([`ClothParams::parallel`] turns it off for a cloth).
+//! - Parallelism: two cloths or more step in parallel across Bevy's
+//!   compute pool (`par_iter_mut`; one cloth steps on the system's thread,
+//!   since the pool would only add a thread handoff); a large cloth (at
+//!   least [`solver::PARALLEL_MIN`] springs or vertices) splits its loops
+//!   in fixed chunks on the same pool when it has more than one thread. On
+//!   the stencil kernels a whole step is one parallel region whose passes
+//!   are phases of chunks the threads claim in order, not a pool scope per
+//!   pass. Results are bitwise the same either way
+//!   ([`ClothParams::parallel`] turns it off for a cloth).
+//! - The frame: the cloth systems run in [`ClothSchedule`], single-threaded,
+//!   from one exclusive system, and the `PostUpdate` pin-following system
+//!   runs only when a cloth's entity moved; one lab cloth adds its step and
+//!   about 8 µs to Bevy's frame, under either executor (`docs/perf.md`,
+//!   "The frame").
 //! - `cargo run --release -p bevy_cloth_report -- --perf` writes
 //!   `docs/perf.md`: every method from 21² to 256² vertices, 100 cloths in
 //!   one app, sparse CG against its parts, the machine's limits, and the
 //!   bevy_silk comparison.
 //!
 //! ## Scheduling
-//! - [`ClothPlugins::new`] takes the schedule (default `FixedUpdate`);
-//!   [`ClothSystems`] orders the step; [`ClothSimulation`] pauses and
-//!   single-steps every cloth.
+//! - [`ClothPlugins::new`] takes the schedule (default `FixedUpdate`) in
+//!   which one exclusive system ([`ClothScheduleSystems`]) runs
+//!   [`ClothSchedule`]; [`ClothSystems`] orders the step there (its `First`
+//!   and `Last` also order systems of the outer schedule around it);
+//!   [`ClothSimulation`] pauses and single-steps every cloth.
 //!
 //! ## Architecture
 //!
@@ -231,7 +242,8 @@
 //!
 //! ### The simulation loop
 //!
-//! Once per fixed step (the schedule's `Time`), in [`ClothSystems`] order:
+//! Once per fixed step (the schedule's `Time`), in [`ClothSchedule`], in
+//! [`ClothSystems`] order:
 //!
 //! ```text
 //! First:    (user hook)
@@ -299,8 +311,8 @@
 //! their entity at every fixed step (`SyncIn`) and again after `Update`
 //! (`ClothFollowSystems`, in `PostUpdate`), so the frame shows the pins where
 //! the entity is. For the physics to see a move in the same fixed step,
-//! move it in `FixedUpdate` before [`ClothSystems::SyncIn`] (for example in
-//! [`ClothSystems::First`]).
+//! move it in `FixedUpdate` in [`ClothSystems::First`] (before the whole
+//! cloth step), or in [`ClothSchedule`] in the same set.
 //!
 //! **Which time step?** The schedule's: set `Time::<Fixed>::from_seconds(0.0333)`
 //! for the lab's.

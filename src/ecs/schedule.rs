@@ -15,9 +15,9 @@ use bevy::prelude::*;
 /// the systems run one after another on one thread, and the heavy ones
 /// spread the cloths over Bevy's compute task pool themselves. Bevy's
 /// multi-threaded executor hands every system to another thread, which on
-/// the perf page's 2-core machine costs more than most of these systems'
-/// work: one lab cloth's frame paid about 110 µs for it (see
-/// `docs/perf.md`, "The frame").
+/// the perf page's 2-core machine costs about 45 µs per system (measured
+/// with an empty one), more than most of these systems' work. What one lab
+/// cloth adds to a frame is in `docs/perf.md`, "The frame".
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ClothSchedule;
 

@@ -27,8 +27,8 @@
 //! and none is fused (Rust never contracts `a·b + c`), so **every level
 //! gives the same bits**. Written as loops rather than with `pulp`: the
 //! compiler's vectorisation of these streams is what a hand-written
-//! `f32s` kernel would be (the lab step, Chebyshev 32 at AVX2: 45.6 µs
-//! against 87.8 µs on the general kernels, `docs/perf.md`), and the loops
+//! `f32s` kernel would be (the lab step, Chebyshev 32 at AVX2: 39.5 µs
+//! against 85.6 µs on the general kernels, `docs/perf.md`), and the loops
 //! stay readable.
 //!
 //! [`StepParams::simd`]: super::StepParams::simd
