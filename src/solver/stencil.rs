@@ -517,22 +517,8 @@ impl Run<'_> {
         let xs = [0, 1, 2].map(|comp| unsafe { x.slice(comp * n + start, len) });
         let mut gs = [0, 1, 2].map(|comp| unsafe { self.grad.slice_mut(comp * n + start, len) });
         for (comp, g) in gs.iter_mut().enumerate() {
-            for f in 0..terms.offsets.len() {
-                let (ta, tb) = terms.runs(f, comp, start, len);
-                if f == 0 {
-                    for i in 0..len {
-                        g[i] = ta[i] - tb[i];
-                    }
-                } else {
-                    for i in 0..len {
-                        g[i] += ta[i] - tb[i];
-                    }
-                }
-            }
-            let (xc, tc) = (xs[comp], &self.target[comp][start..start + len]);
-            for i in 0..len {
-                g[i] += (xc[i] - tc[i]) * mass[i];
-            }
+            let target = &self.target[comp][start..start + len];
+            gradient_run(&terms, comp, start, g, (xs[comp], target, mass));
         }
         let (gradient, positions) = unsafe {
             (
@@ -822,23 +808,8 @@ fn vertices_blocked(
         let at = chunk.start + b;
         let (mass, inv_diag) = (&data.mass_term[at..at + bl], &data.inv_diag[at..at + bl]);
         for c in 0..3 {
-            let g = &mut grad[c][..bl];
-            for f in 0..chunk.terms.offsets.len() {
-                let (ta, tb) = chunk.terms.runs(f, c, at, bl);
-                if f == 0 {
-                    for i in 0..bl {
-                        g[i] = ta[i] - tb[i];
-                    }
-                } else {
-                    for i in 0..bl {
-                        g[i] += ta[i] - tb[i];
-                    }
-                }
-            }
             let (xc, tc) = (&xs[c][b..b + bl], &chunk.target[c][at..at + bl]);
-            for i in 0..bl {
-                g[i] += (xc[i] - tc[i]) * mass[i];
-            }
+            gradient_run(chunk.terms, c, at, &mut grad[c][..bl], (xc, tc, mass));
         }
         // `g = (x − target)·m + Σ` in the line above is `Σ + (x − target)·m`:
         // the same value (addition commutes bitwise).
@@ -899,6 +870,36 @@ fn vertices_blocked(
         }
     }
     measured
+}
+
+/// Component `c` of the gradient of the vertices from `at` (`g.len()` of
+/// them): `g = Σ_f (start_f − end_f) + (x − target)·m`, the families
+/// summed in order, from `x`, `target` and `m/dt²` of those vertices.
+#[inline(always)]
+fn gradient_run(
+    terms: &Terms<'_>,
+    c: usize,
+    at: usize,
+    g: &mut [f32],
+    (x, target, mass): (&[f32], &[f32], &[f32]),
+) {
+    let len = g.len();
+    for f in 0..terms.offsets.len() {
+        let (ta, tb) = terms.runs(f, c, at, len);
+        if f == 0 {
+            for i in 0..len {
+                g[i] = ta[i] - tb[i];
+            }
+        } else {
+            for i in 0..len {
+                g[i] += ta[i] - tb[i];
+            }
+        }
+    }
+    let (x, target, mass) = (&x[..len], &target[..len], &mass[..len]);
+    for i in 0..len {
+        g[i] += (x[i] - target[i]) * mass[i];
+    }
 }
 
 #[cfg(test)]
