@@ -142,7 +142,9 @@ pub struct MethodPlugin<M> {
 }
 
 impl<M> MethodPlugin<M> {
-    /// Runs in `schedule`.
+    /// Runs in `schedule`: its step system is in
+    /// [`ClothSchedule`](super::ClothSchedule), which the core plugin (added
+    /// with this schedule if missing) runs there.
     pub fn new(schedule: impl ScheduleLabel) -> Self {
         Self {
             schedule: schedule.intern(),

@@ -16,7 +16,9 @@ macro_rules! scheduled_plugin {
         }
 
         impl $name {
-            /// Runs in `schedule`.
+            /// Runs in `schedule`: its systems are in
+            /// [`ClothSchedule`](crate::ClothSchedule), which the core plugin
+            /// (added with this schedule if missing) runs there.
             pub fn new(schedule: impl bevy::ecs::schedule::ScheduleLabel) -> Self {
                 Self {
                     schedule: schedule.intern(),
