@@ -160,7 +160,7 @@ pub struct Measured {
 /// vertices and one over its springs, or `None` if a position or velocity
 /// is NaN or infinite (or a spring of zero rest length has zero length).
 ///
-/// The spring pass shares [`spring_groups`]' packed lengths: each spring's
+/// The spring pass shares `spring_groups`' packed lengths: each spring's
 /// `l − L`, stretch and energy `½k(l − L)²` are computed four at a time in
 /// `f32` and summed in `f64` (the separate `f64` passes it replaces in the
 /// frame measured 6.4 µs for the stretch and 10.1 µs for the energy on the

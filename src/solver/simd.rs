@@ -8,7 +8,7 @@
 //!
 //! The crate is built for baseline x86-64 (SSE2) so that a game need not be
 //! built with `-C target-cpu=native`; glam's `Vec4` is then four lanes. The
-//! spring pass ([`spring_products`]) also has 8-lane (AVX2) and 16-lane
+//! spring pass (`spring_products`) also has 8-lane (AVX2) and 16-lane
 //! (AVX-512F) versions, compiled with `#[target_feature]` and chosen per call
 //! from [`Simd`], against what `is_x86_feature_detected!` reports (it caches
 //! its answer).
