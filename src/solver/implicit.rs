@@ -145,7 +145,6 @@ impl Method for ImplicitSolver {
     ) -> Result<StepReport, StepError> {
         let config = self;
         let n = model.vertex_count();
-        ws.prepare(n, config.chebyshev.is_some());
         let dt = params.dt as f32;
         let inv_dt2 = 1.0 / (dt * dt);
         let pinned = model.pinned();
@@ -162,6 +161,9 @@ impl Method for ImplicitSolver {
         let gravity_step = Vec3A::from(params.gravity) * (dt * dt);
         // The structure-of-arrays kernels where the springs form a stencil.
         let stencil = model.topology().stencil().filter(|_| params.stencil);
+        // The general kernels' targets and previous iterate (the stencil
+        // kernels keep their own).
+        ws.prepare(n, stencil.is_none(), config.chebyshev.is_some());
         if stencil.is_none() {
             stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
             // One term per spring and a zero past them, which padded gathers
@@ -465,15 +467,20 @@ struct Gather {
 }
 
 impl ImplicitWorkspace {
-    fn prepare(&mut self, vertices: usize, chebyshev: bool) {
+    /// Sizes the buffers for `vertices`; the general kernels' targets and
+    /// previous iterate (Chebyshev's) only if `general`.
+    fn prepare(&mut self, vertices: usize, general: bool, chebyshev: bool) {
         let g = &mut self.gather;
-        for v in [&mut self.x_tilde, &mut g.target] {
-            v.resize(vertices, Vec3A::ZERO);
+        self.x_tilde.resize(vertices, Vec3A::ZERO);
+        if general {
+            g.target.resize(vertices, Vec3A::ZERO);
+        } else {
+            g.target = Vec::new();
         }
         for v in [&mut g.mass_term, &mut g.inv_diag, &mut g.base_diag] {
             v.resize(vertices, 0.0);
         }
-        if chebyshev {
+        if general && chebyshev {
             self.x_prev.resize(vertices, Vec3A::ZERO);
         } else {
             self.x_prev = Vec::new();

@@ -168,7 +168,7 @@ pub(crate) struct StencilWorkspace {
     target: Vec<f32>,
     /// Per family and component: `pad` zeros, then `n` terms.
     terms: Vec<f32>,
-    /// Per chunk of vertices: the sum of squared steps.
+    /// Per iteration and chunk of vertices: the sum of squared steps.
     chunk_sums: Vec<f64>,
     /// `[g_x…, g_y…, g_z…]`: the gradient at the final iterate.
     grad: Vec<f32>,
