@@ -43,6 +43,7 @@ pub mod measures;
 pub mod method;
 pub mod params;
 pub mod pbd;
+mod pbd_stencil;
 mod phases;
 pub mod projective;
 pub mod simd;

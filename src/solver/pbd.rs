@@ -12,7 +12,10 @@
 //!
 //! A penalty sphere acts as an explicit force in the velocity prediction
 //! (`v ← v + dt·f_c/m`). The proposals are computed once per spring and
-//! gathered per vertex.
+//! gathered per vertex. A cloth whose springs form a stencil (every
+//! builder's grid) runs step 2 on structure-of-arrays kernels at the CPU's
+//! widest SIMD (`pbd_stencil`, crate-private), unless
+//! [`StepParams::stencil`] is off.
 //! Pinned vertices never move (but their springs still propose positions to
 //! their neighbours).
 
@@ -22,6 +25,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{padded_gather, spring_scales_by};
+use super::pbd_stencil::PbdStencilWorkspace;
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -89,17 +93,14 @@ impl Method for PbdSolver {
     ) -> Result<StepReport, StepError> {
         let config = self;
         let n = model.vertex_count();
+        let report = StepReport {
+            iterations: config.iterations,
+            residual: None,
+            relative_error: None,
+        };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();
         let pinned = model.pinned();
-        ws.proposals.clear();
-        ws.proposals.resize(springs.len() + 1, [Vec3A::ZERO; 2]);
-        ws.coeffs.clear();
-        ws.coeffs
-            .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
-        ws.inv_weight.clear();
-        ws.inv_weight
-            .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
         let dt = params.dt as f32;
         let inv_dt = 1.0 / dt;
         let gravity = Vec3A::from(params.gravity);
@@ -121,6 +122,27 @@ impl Method for PbdSolver {
             }
         }
 
+        // The structure-of-arrays kernels where the springs form a stencil.
+        if let Some(stencil) = model.topology().stencil().filter(|_| params.stencil) {
+            ws.stencil.load(stencil, x, |i| adjacency.degree(i), pinned);
+            ws.stencil.iterate(
+                params.simd,
+                params.parallel,
+                config.iterations,
+                inv_dt,
+                x,
+                v,
+            );
+            return Ok(report);
+        }
+        ws.proposals.clear();
+        ws.proposals.resize(springs.len() + 1, [Vec3A::ZERO; 2]);
+        ws.coeffs.clear();
+        ws.coeffs
+            .extend(springs.iter().map(|s| [0.0, -0.5 * s.rest_length]));
+        ws.inv_weight.clear();
+        ws.inv_weight
+            .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
         for _ in 0..config.iterations {
             let proposals = &mut ws.proposals;
             // Positions read without a check per index, as in the implicit
@@ -178,11 +200,7 @@ impl Method for PbdSolver {
                 }
             }
         }
-        Ok(StepReport {
-            iterations: config.iterations,
-            residual: None,
-            relative_error: None,
-        })
+        Ok(report)
     }
 }
 
@@ -197,4 +215,6 @@ pub struct PbdWorkspace {
     coeffs: Vec<[f32; 2]>,
     /// Per vertex: `1/(0.2 + nᵢ)`.
     inv_weight: Vec<f32>,
+    /// The structure-of-arrays state of the stencil kernels.
+    stencil: PbdStencilWorkspace,
 }

@@ -43,6 +43,39 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{Springs, spring_scales_by};
 
+/// Defines `fn name(level: Simd, args…)` that runs the plain-loop kernel
+/// `kernel(args…)` compiled for `level`: the baseline, AVX2 + FMA or
+/// AVX-512F (`#[target_feature]` copies, on x86-64), so the compiler
+/// vectorises the kernel's loops at that width. `kernel` must be
+/// `#[inline(always)]` for its loops to be compiled into each copy.
+macro_rules! at_level {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $kernel:ident) => {
+        $(#[$doc])*
+        fn $name(level: $crate::solver::Simd, $($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx,avx2,fma")]
+            fn avx2($($arg: $ty),*) $(-> $ret)? {
+                $kernel($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx,avx2,fma,avx512f")]
+            fn avx512($($arg: $ty),*) $(-> $ret)? {
+                $kernel($($arg),*)
+            }
+            match level {
+                // SAFETY: `Simd::resolve` returns a level only if the CPU
+                // has its features, and callers pass a resolved level.
+                #[cfg(target_arch = "x86_64")]
+                $crate::solver::Simd::Avx512 => unsafe { avx512($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                $crate::solver::Simd::Avx2 => unsafe { avx2($($arg),*) },
+                _ => $kernel($($arg),*),
+            }
+        }
+    };
+}
+pub(crate) use at_level;
+
 /// Which SIMD instruction set the spring pass runs on
 /// ([`StepParams::simd`](super::StepParams::simd)). Every choice gives the
 /// same bits (see the [module docs](self)); this only trades speed.

@@ -39,7 +39,7 @@ use bevy::math::Vec3A;
 
 use super::kernels::{CHUNK, parallel_pool};
 use super::phases::run_phases;
-use super::simd::Simd;
+use super::simd::{Simd, at_level};
 use crate::collision::PenaltySphere;
 use crate::model::Spring;
 
@@ -49,7 +49,7 @@ use crate::model::Spring;
 pub(crate) const MAX_FAMILIES: usize = 8;
 
 /// No spring of this family starts at the vertex (its kind's slot).
-const NONE: u8 = 3;
+pub(super) const NONE: u8 = 3;
 
 /// A cloth's springs as offset families (see the [module docs](self)), or
 /// nothing when they do not form a stencil.
@@ -57,15 +57,15 @@ const NONE: u8 = 3;
 pub(crate) struct Stencil {
     /// Unique per built stencil (clones share it: same contents), so a
     /// workspace can tell that its coefficients are this stencil's.
-    id: u64,
+    pub(super) id: u64,
     /// The families' offsets `o`, increasing.
-    offsets: Vec<usize>,
+    pub(super) offsets: Vec<usize>,
     /// Per family, per vertex `a`: the kind of the spring `(a, a + o)`
     /// (its index in [`SpringKind::ALL`](crate::model::SpringKind::ALL)),
     /// or [`NONE`]; `n` entries per family.
-    kinds: Vec<u8>,
+    pub(super) kinds: Vec<u8>,
     /// Per family, per vertex: that spring's rest length (0 for none).
-    rest: Vec<f32>,
+    pub(super) rest: Vec<f32>,
 }
 
 /// Equal contents (the [`id`](Stencil::id) aside).
@@ -118,7 +118,7 @@ impl Stencil {
     }
 
     /// The largest offset.
-    fn max_offset(&self) -> usize {
+    pub(super) fn max_offset(&self) -> usize {
         self.offsets.last().copied().unwrap_or(0)
     }
 }
@@ -324,11 +324,11 @@ impl StencilWorkspace {
 /// A raw pointer to one of the workspace's arrays, shared by the items of
 /// [`StencilWorkspace::iterate`]'s phases.
 #[derive(Clone, Copy)]
-struct Ptr(*mut f32);
+pub(super) struct Ptr(pub(super) *mut f32);
 #[derive(Clone, Copy)]
 struct Ptr64(*mut f64);
 #[derive(Clone, Copy)]
-struct PtrV(*mut Vec3A);
+pub(super) struct PtrV(pub(super) *mut Vec3A);
 
 // SAFETY: the items that share them write disjoint chunks, and read only
 // what no item of their phase writes (see `Run`).
@@ -342,7 +342,7 @@ unsafe impl Sync for PtrV {}
 impl Ptr {
     /// # Safety
     /// `at + len` within the array, and nothing writes it meanwhile.
-    unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
+    pub(super) unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
         unsafe { std::slice::from_raw_parts(self.0.add(at), len) }
     }
 
@@ -350,7 +350,7 @@ impl Ptr {
     /// `at + len` within the array, and nothing else reads or writes it
     /// meanwhile.
     #[allow(clippy::mut_from_ref)]
-    unsafe fn slice_mut<'a>(self, at: usize, len: usize) -> &'a mut [f32] {
+    pub(super) unsafe fn slice_mut<'a>(self, at: usize, len: usize) -> &'a mut [f32] {
         unsafe { std::slice::from_raw_parts_mut(self.0.add(at), len) }
     }
 }
@@ -545,7 +545,7 @@ impl Run<'_> {
 }
 
 /// `[x…, y…, z…]` from `v`.
-fn to_soa(v: &[Vec3A], out: &mut Vec<f32>) {
+pub(super) fn to_soa(v: &[Vec3A], out: &mut Vec<f32>) {
     out.clear();
     out.extend(v.iter().map(|p| p.x));
     out.extend(v.iter().map(|p| p.y));
@@ -553,11 +553,11 @@ fn to_soa(v: &[Vec3A], out: &mut Vec<f32>) {
 }
 
 /// The families' terms as the vertex pass reads them.
-struct Terms<'a> {
-    data: &'a [f32],
-    stride: usize,
-    pad: usize,
-    offsets: &'a [usize],
+pub(super) struct Terms<'a> {
+    pub(super) data: &'a [f32],
+    pub(super) stride: usize,
+    pub(super) pad: usize,
+    pub(super) offsets: &'a [usize],
 }
 
 impl Terms<'_> {
@@ -565,7 +565,7 @@ impl Terms<'_> {
     /// vertices start (`a`) and the ones they end (`b`, at `i − o`), `len`
     /// each.
     #[inline(always)]
-    fn runs(&self, f: usize, c: usize, start: usize, len: usize) -> (&[f32], &[f32]) {
+    pub(super) fn runs(&self, f: usize, c: usize, start: usize, len: usize) -> (&[f32], &[f32]) {
         let row = &self.data[(3 * f + c) * self.stride..(3 * f + c + 1) * self.stride];
         let i = self.pad + start;
         let o = self.offsets[f];
@@ -581,30 +581,11 @@ struct Chunk<'a> {
     data: &'a VertexData<'a>,
 }
 
-type Ends<'a> = [(&'a [f32], &'a [f32]); 3];
+pub(super) type Ends<'a> = [(&'a [f32], &'a [f32]); 3];
 
-/// The spring kernel at `level` (see [`springs_kernel`]).
-fn springs(level: Simd, ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
-    match level {
-        // SAFETY: `resolve` returns a level only if the CPU has its features.
-        #[cfg(target_arch = "x86_64")]
-        Simd::Avx512 => unsafe { springs_avx512(ends, coeffs, out) },
-        #[cfg(target_arch = "x86_64")]
-        Simd::Avx2 => unsafe { springs_avx2(ends, coeffs, out) },
-        _ => springs_kernel(ends, coeffs, out),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,fma")]
-fn springs_avx2(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
-    springs_kernel(ends, coeffs, out);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,fma,avx512f")]
-fn springs_avx512(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) {
-    springs_kernel(ends, coeffs, out);
+at_level! {
+    /// The spring kernel at `level` (see [`springs_kernel`]).
+    fn springs(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) => springs_kernel
 }
 
 /// `t = d·(α − β/l)` for each spring of a run, `d = x_a − x_b`, `l = ‖d‖`
@@ -628,44 +609,14 @@ fn springs_kernel(ends: Ends<'_>, (alpha, beta): (&[f32], &[f32]), out: [&mut [f
     }
 }
 
-/// The vertex kernel at `level` (see [`vertices_kernel`]).
-fn vertices(
-    level: Simd,
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    match level {
-        // SAFETY: `resolve` returns a level only if the CPU has its features.
-        #[cfg(target_arch = "x86_64")]
-        Simd::Avx512 => unsafe { vertices_avx512(chunk, x, prev, update) },
-        #[cfg(target_arch = "x86_64")]
-        Simd::Avx2 => unsafe { vertices_avx2(chunk, x, prev, update) },
-        _ => vertices_by_families(chunk, x, prev, update),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,fma")]
-fn vertices_avx2(
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    vertices_by_families(chunk, x, prev, update)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,fma,avx512f")]
-fn vertices_avx512(
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    vertices_by_families(chunk, x, prev, update)
+at_level! {
+    /// The vertex kernel at `level` (see [`vertices_by_families`]).
+    fn vertices(
+        chunk: &Chunk<'_>,
+        x: [&mut [f32]; 3],
+        prev: [&mut [f32]; 3],
+        update: Update,
+    ) -> f64 => vertices_by_families
 }
 
 /// [`vertices_fused`] for the stencil's number of families (a constant in

@@ -6,6 +6,7 @@ use crate::collision::PenaltySphere;
 use crate::methods::{AnyMethod, AnyWorkspace};
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::implicit::ImplicitSolver;
+use crate::solver::pbd::PbdSolver;
 use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
 
 /// The implicit methods the stencil kernels run.
@@ -28,11 +29,30 @@ fn run(
     spheres: &[PenaltySphere],
     steps: usize,
 ) -> (ClothState, StepReport) {
+    run_any(
+        AnyMethod::Implicit(method),
+        model,
+        start,
+        params,
+        spheres,
+        steps,
+    )
+}
+
+/// As [`run`], for any method.
+fn run_any(
+    method: AnyMethod,
+    model: &ClothModel,
+    start: &ClothState,
+    params: &StepParams,
+    spheres: &[PenaltySphere],
+    steps: usize,
+) -> (ClothState, StepReport) {
     let mut state = start.clone();
     let mut ws = AnyWorkspace::default();
     let mut report = None;
     for _ in 0..steps {
-        let r = AnyMethod::Implicit(method)
+        let r = method
             .step(model, &mut state, params, spheres, &mut ws)
             .unwrap();
         report = Some(r);
@@ -172,9 +192,10 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
     let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     // With and without a penalty sphere the sheet falls into.
     let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
-    for (method, spheres) in METHODS
-        .into_iter()
-        .flat_map(|m| [(m, &[][..]), (m, std::slice::from_ref(&sphere))])
+    // The implicit methods and PBD, which runs its own stencil kernels.
+    let methods = METHODS.map(AnyMethod::Implicit).into_iter().chain([PBD]);
+    for (method, spheres) in
+        methods.flat_map(|m| [(m, &[][..]), (m, std::slice::from_ref(&sphere))])
     {
         let of = |simd, parallel| {
             let params = StepParams {
@@ -182,7 +203,7 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
                 parallel,
                 ..StepParams::LAB
             };
-            let (state, report) = run(method, &model, &start, &params, spheres, 2);
+            let (state, report) = run_any(method, &model, &start, &params, spheres, 2);
             (bits(&state), report.residual.map(f32::to_bits))
         };
         let reference = of(Simd::Baseline, false);
@@ -202,7 +223,8 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
 #[test]
 fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
     let lab = ClothBuilder::lab().build().unwrap();
-    // The same grid over a smaller square: other rest lengths.
+    // The same grid over a smaller square (other rest lengths), pinned
+    // elsewhere.
     let other = ClothBuilder::grid(
         21,
         21,
@@ -210,25 +232,82 @@ fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
         Vec3::new(-2.0, 0.0, 2.0),
         Vec3::new(2.0, 0.0, -2.0),
     )
-    .with_pins([0, 20])
+    .with_pins([0, 440])
     .build()
     .unwrap();
     let stiff = StepParams {
         stiffness: SpringStiffness::uniform(1e5),
         ..StepParams::LAB
     };
-    let method = AnyMethod::Implicit(METHODS[1]);
-    // One workspace through a soft step of the lab cloth, a stiff one, and
-    // a step of a cloth with the same grid and other rest lengths; each must
-    // equal the same step on a fresh workspace (coefficients rebuilt).
-    let mut ws = AnyWorkspace::default();
-    for (model, params) in [(&lab, &StepParams::LAB), (&lab, &stiff), (&other, &stiff)] {
-        let start = ClothState::at_rest(model, &Affine3A::IDENTITY);
-        let mut reused = start.clone();
-        method
-            .step(model, &mut reused, params, &[], &mut ws)
-            .unwrap();
-        let (fresh, _) = run(METHODS[1], model, &start, params, &[], 1);
-        assert_eq!(bits(&reused), bits(&fresh));
+    // One workspace through a soft step of the lab cloth, a stiff one, a
+    // step of a cloth with the same grid and other rest lengths and pins,
+    // and the lab cloth again; each must equal the same step on a fresh
+    // workspace (coefficients rebuilt). Chebyshev, and PBD (its own
+    // kernels: rest lengths and pins).
+    for method in [AnyMethod::Implicit(METHODS[1]), PBD] {
+        let mut ws = AnyWorkspace::default();
+        let steps = [
+            (&lab, &StepParams::LAB),
+            (&lab, &stiff),
+            (&other, &stiff),
+            (&lab, &StepParams::LAB),
+        ];
+        for (model, params) in steps {
+            let start = ClothState::at_rest(model, &Affine3A::IDENTITY);
+            let mut reused = start.clone();
+            method
+                .step(model, &mut reused, params, &[], &mut ws)
+                .unwrap();
+            let (fresh, _) = run_any(method, model, &start, params, &[], 1);
+            assert_eq!(bits(&reused), bits(&fresh), "{}", method.name());
+        }
     }
+}
+
+/// PBD (32 iterations), which runs its own stencil kernels.
+const PBD: AnyMethod = AnyMethod::Pbd(PbdSolver::new(32));
+
+#[test]
+fn pbd_stencil_kernels_agree_with_the_general_kernels_within_rounding() {
+    let lab = ClothBuilder::lab().build().unwrap();
+    let assignment = ClothBuilder::assignment(12, 12).build().unwrap();
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
+    let mut differing = 0;
+    for (name, model) in [("lab", &lab), ("assignment", &assignment)] {
+        let start = swinging(model);
+        for spheres in [&[][..], &[sphere]] {
+            let params = StepParams::LAB;
+            let general = StepParams {
+                stencil: false,
+                ..params
+            };
+            let (a, _) = run_any(PBD, model, &start, &params, spheres, 3);
+            let (b, _) = run_any(PBD, model, &start, &general, spheres, 3);
+            let apart = |p: &[Vec3A], q: &[Vec3A]| {
+                p.iter()
+                    .zip(q)
+                    .map(|(p, q)| (*p - *q).abs().max_element())
+                    .fold(0.0f32, f32::max)
+            };
+            let scale = model.size();
+            let worst = apart(&a.positions, &b.positions);
+            assert!(worst <= 2e-5 * scale, "{name}: positions {worst} apart");
+            // Velocities are moves over dt: rounding over dt.
+            let worst = apart(&a.velocities, &b.velocities);
+            assert!(
+                worst <= 2e-5 * scale / params.dt as f32,
+                "{name}: velocities {worst} apart"
+            );
+            assert_ne!(bits(&a), bits(&start));
+            differing += usize::from(bits(&a) != bits(&b));
+            for (i, &pinned) in model.pinned().iter().enumerate() {
+                if pinned {
+                    assert_eq!(a.positions[i], start.positions[i]);
+                    assert_eq!(a.velocities[i], start.velocities[i]);
+                }
+            }
+        }
+    }
+    // The stencil kernels did run (the two differ by rounding).
+    assert!(differing > 0);
 }
