@@ -176,15 +176,16 @@
 //! - A cloth whose springs form a stencil — a grid numbered row by row, as
 //!   every builder's, so that each spring `(a, a + o)` belongs to one of at
 //!   most eight offset families `o` — runs the implicit iteration (Jacobi,
-//!   Chebyshev) and PBD's strain limiting on structure-of-arrays kernels
-//!   instead (`solver::stencil`, `solver::pbd_stencil`, built with the
+//!   Chebyshev), PBD's strain limiting and symplectic Euler's spring forces
+//!   on structure-of-arrays kernels instead (`solver::stencil`, `solver::pbd_stencil`, built with the
 //!   topology, invisible to users): a
 //!   family's springs are two contiguous runs of positions, so both passes
 //!   are plain streams the compiler vectorises, compiled for SSE2/NEON,
 //!   AVX2 and AVX-512 and chosen at run time. They give the same bits at
 //!   every level and agree with the general kernels within `f32` rounding
 //!   (a vertex sums its springs family by family); about 2× faster on the
-//!   lab cloth and 2.5× at 256² (`docs/perf.md`); PBD 2.7× on the lab cloth.
+//!   lab cloth and 2.5× at 256² (`docs/perf.md`); PBD 2.7× on the lab cloth,
+//!   symplectic Euler 1.7–1.8×.
 //!   [`solver::StepParams::stencil`] turns them off for comparison.
 //! - Memory order: the builders' grids are numbered row by row, so a
 //!   spring's two ends are at most a row apart in memory; a mesh read by

@@ -256,29 +256,8 @@ impl StencilWorkspace {
         self.chunk_sums.resize(iterations * chunks, 0.0);
         let gradient = &mut gradient[..n];
         let positions = &mut positions[..n];
-        let run = Run {
-            n,
-            chunks,
-            level: simd.resolve(),
-            stride: self.pad + n,
-            pad: self.pad,
-            offsets: &self.offsets,
-            alpha: &self.alpha,
-            beta: &self.beta,
-            target: [
-                &self.target[..n],
-                &self.target[n..2 * n],
-                &self.target[2 * n..3 * n],
-            ],
-            data,
-            chebyshev,
-            buffers: [Ptr(self.x.as_mut_ptr()), Ptr(self.prev.as_mut_ptr())],
-            terms: (Ptr(self.terms.as_mut_ptr()), self.terms.len()),
-            grad: Ptr(self.grad.as_mut_ptr()),
-            sums: Ptr64(self.chunk_sums.as_mut_ptr()),
-            gradient: PtrV(gradient.as_mut_ptr()),
-            positions: PtrV(positions.as_mut_ptr()),
-        };
+        let outputs = [PtrV(gradient.as_mut_ptr()), PtrV(positions.as_mut_ptr())];
+        let run = self.run(simd, data, chebyshev, outputs);
         // Phases: spring pass k at 2k (k = 0..=iterations), vertex pass k at
         // 2k + 1, the gradient at 2·iterations + 1.
         let phases = 2 * iterations + 2;
@@ -314,6 +293,80 @@ impl StencilWorkspace {
                         run.springs_chunk(k, chunk);
                     } else {
                         run.vertices_chunk(k, chunk, decode(value));
+                    }
+                }
+            },
+        );
+    }
+}
+
+impl StencilWorkspace {
+    /// The [`Run`] of a step over this workspace's arrays, writing the
+    /// gradient (or sums) and positions to `[gradient, positions]`.
+    fn run<'a>(
+        &'a mut self,
+        simd: Simd,
+        data: &'a VertexData<'a>,
+        chebyshev: bool,
+        [gradient, positions]: [PtrV; 2],
+    ) -> Run<'a> {
+        let n = self.n;
+        Run {
+            n,
+            chunks: n.div_ceil(CHUNK),
+            level: simd.resolve(),
+            stride: self.pad + n,
+            pad: self.pad,
+            offsets: &self.offsets,
+            alpha: &self.alpha,
+            beta: &self.beta,
+            target: [
+                &self.target[..n],
+                &self.target[n..2 * n],
+                &self.target[2 * n..3 * n],
+            ],
+            data,
+            chebyshev,
+            buffers: [Ptr(self.x.as_mut_ptr()), Ptr(self.prev.as_mut_ptr())],
+            terms: (Ptr(self.terms.as_mut_ptr()), self.terms.len()),
+            grad: Ptr(self.grad.as_mut_ptr()),
+            sums: Ptr64(self.chunk_sums.as_mut_ptr()),
+            gradient,
+            positions,
+        }
+    }
+
+    /// After [`load`](Self::load): one spring pass at the loaded positions,
+    /// and per vertex its springs' terms `Σ (start − end)`, summed family
+    /// by family, into `sums` (`k(1 − L/l)(x_a − x_b)` per spring: the
+    /// negated spring forces, as symplectic Euler takes them). Both passes
+    /// are phases of one parallel region when `parallel` allows.
+    pub(crate) fn spring_sums(&mut self, simd: Simd, parallel: bool, sums: &mut [Vec3A]) {
+        let n = self.n;
+        let chunks = n.div_ceil(CHUNK);
+        let sums = &mut sums[..n];
+        let none = VertexData {
+            mass_term: &[],
+            inv_diag: &[],
+            base_diag: &[],
+            pinned: &[],
+            spheres: &[],
+        };
+        let outputs = [PtrV(sums.as_mut_ptr()), PtrV(std::ptr::null_mut())];
+        let run = self.run(simd, &none, false, outputs);
+        run_phases(
+            parallel_pool(parallel, n),
+            2,
+            chunks,
+            |_| 0,
+            |phase, chunk, _| {
+                // SAFETY: the spring pass writes the terms by chunk; the
+                // sums phase reads them and writes its chunk of `sums`.
+                unsafe {
+                    if phase == 0 {
+                        run.springs_chunk(0, chunk);
+                    } else {
+                        run.sums_chunk(chunk);
                     }
                 }
             },
@@ -500,6 +553,20 @@ impl Run<'_> {
         };
         let squares = vertices(self.level, &chunk, xs, prev, update);
         unsafe { *self.sums.0.add(k * self.chunks + c) = squares };
+    }
+
+    /// Chunk `c`'s term sums into `gradient` (see
+    /// [`StencilWorkspace::spring_sums`]).
+    ///
+    /// # Safety
+    /// Runs after the spring pass, in a phase that writes no terms.
+    unsafe fn sums_chunk(&self, c: usize) {
+        let (start, len) = self.span(c);
+        // SAFETY: nothing writes the terms in this phase; the chunk's sums
+        // are this item's.
+        let terms = unsafe { self.terms() };
+        let out = unsafe { std::slice::from_raw_parts_mut(self.gradient.0.add(start), len) };
+        sums(self.level, &terms, start, out);
     }
 
     /// The gradient at iterate `k` (after its spring pass), chunk `c`, and
@@ -835,6 +902,39 @@ fn gradient_run(
     (x, target, mass): (&[f32], &[f32], &[f32]),
 ) {
     let len = g.len();
+    term_sums(terms, c, at, g);
+    let (x, target, mass) = (&x[..len], &target[..len], &mass[..len]);
+    for i in 0..len {
+        g[i] += (x[i] - target[i]) * mass[i];
+    }
+}
+
+at_level! {
+    /// [`sums_kernel`] at `level`.
+    fn sums(terms: &Terms<'_>, start: usize, out: &mut [Vec3A]) => sums_kernel
+}
+
+/// `Σ_f (start_f − end_f)` of the vertices from `start` (`out.len()` of
+/// them), in blocks of [`BLOCK`].
+#[inline(always)]
+fn sums_kernel(terms: &Terms<'_>, start: usize, out: &mut [Vec3A]) {
+    let mut block = [[0.0f32; BLOCK]; 3];
+    for (b, out) in out.chunks_mut(BLOCK).enumerate() {
+        let (at, bl) = (start + b * BLOCK, out.len());
+        for (comp, g) in block.iter_mut().enumerate() {
+            term_sums(terms, comp, at, &mut g[..bl]);
+        }
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = Vec3A::new(block[0][i], block[1][i], block[2][i]);
+        }
+    }
+}
+
+/// Component `c` of `Σ_f (start_f − end_f)` for the vertices from `at`
+/// (`g.len()` of them), the families summed in order.
+#[inline(always)]
+fn term_sums(terms: &Terms<'_>, c: usize, at: usize, g: &mut [f32]) {
+    let len = g.len();
     for f in 0..terms.offsets.len() {
         let (ta, tb) = terms.runs(f, c, at, len);
         if f == 0 {
@@ -846,10 +946,6 @@ fn gradient_run(
                 g[i] += ta[i] - tb[i];
             }
         }
-    }
-    let (x, target, mass) = (&x[..len], &target[..len], &mass[..len]);
-    for i in 0..len {
-        g[i] += (x[i] - target[i]) * mass[i];
     }
 }
 

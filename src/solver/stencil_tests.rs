@@ -7,6 +7,7 @@ use crate::methods::{AnyMethod, AnyWorkspace};
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::implicit::ImplicitSolver;
 use crate::solver::pbd::PbdSolver;
+use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
 
 /// The implicit methods the stencil kernels run.
@@ -67,6 +68,14 @@ fn bits(state: &ClothState) -> Vec<[u32; 3]> {
         .chain(&state.velocities)
         .map(|v| v.to_array().map(f32::to_bits))
         .collect()
+}
+
+/// The largest difference of any coordinate of `p` and `q`.
+fn apart(p: &[Vec3A], q: &[Vec3A]) -> f32 {
+    p.iter()
+        .zip(q)
+        .map(|(p, q)| (*p - *q).abs().max_element())
+        .fold(0.0f32, f32::max)
 }
 
 /// The lab cloth after 20 Chebyshev steps: swinging, every spring stretched
@@ -148,12 +157,7 @@ fn stencil_kernels_agree_with_the_general_kernels_within_rounding() {
                 let (a, ra) = run(method, model, &start, &params, spheres, 3);
                 let (b, rb) = run(method, model, &start, &general, spheres, 3);
                 let scale = model.size();
-                let worst = a
-                    .positions
-                    .iter()
-                    .zip(&b.positions)
-                    .map(|(p, q)| (*p - *q).abs().max_element())
-                    .fold(0.0f32, f32::max);
+                let worst = apart(&a.positions, &b.positions);
                 assert!(
                     worst <= 2e-5 * scale,
                     "{name}, {} with {} spheres: positions {worst} apart",
@@ -192,8 +196,12 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
     let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     // With and without a penalty sphere the sheet falls into.
     let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
-    // The implicit methods and PBD, which runs its own stencil kernels.
-    let methods = METHODS.map(AnyMethod::Implicit).into_iter().chain([PBD]);
+    // The implicit methods, PBD (its own stencil kernels) and symplectic
+    // Euler (the spring pass and the term sums).
+    let methods = METHODS
+        .map(AnyMethod::Implicit)
+        .into_iter()
+        .chain([PBD, SYMPLECTIC]);
     for (method, spheres) in
         methods.flat_map(|m| [(m, &[][..]), (m, std::slice::from_ref(&sphere))])
     {
@@ -244,7 +252,7 @@ fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
     // and the lab cloth again; each must equal the same step on a fresh
     // workspace (coefficients rebuilt). Chebyshev, and PBD (its own
     // kernels: rest lengths and pins).
-    for method in [AnyMethod::Implicit(METHODS[1]), PBD] {
+    for method in [AnyMethod::Implicit(METHODS[1]), PBD, SYMPLECTIC] {
         let mut ws = AnyWorkspace::default();
         let steps = [
             (&lab, &StepParams::LAB),
@@ -267,6 +275,44 @@ fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
 /// PBD (32 iterations), which runs its own stencil kernels.
 const PBD: AnyMethod = AnyMethod::Pbd(PbdSolver::new(32));
 
+/// Symplectic Euler, whose spring sums run on the stencil kernels.
+const SYMPLECTIC: AnyMethod = AnyMethod::Symplectic(SymplecticSolver);
+
+#[test]
+fn symplectic_stencil_sums_agree_with_the_general_kernels_within_rounding() {
+    let lab = ClothBuilder::lab().build().unwrap();
+    let assignment = ClothBuilder::assignment(12, 12).build().unwrap();
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
+    // A step the explicit method is stable at (below 2/ω_max).
+    let params = StepParams {
+        dt: 0.002,
+        ..StepParams::LAB
+    };
+    let general = StepParams {
+        stencil: false,
+        ..params
+    };
+    let mut differing = 0;
+    for (name, model) in [("lab", &lab), ("assignment", &assignment)] {
+        let start = swinging(model);
+        for spheres in [&[][..], &[sphere]] {
+            let (a, _) = run_any(SYMPLECTIC, model, &start, &params, spheres, 20);
+            let (b, _) = run_any(SYMPLECTIC, model, &start, &general, spheres, 20);
+            let worst = apart(&a.positions, &b.positions);
+            assert!(worst <= 2e-5 * model.size(), "{name}: {worst} apart");
+            assert_ne!(bits(&a), bits(&start));
+            differing += usize::from(bits(&a) != bits(&b));
+            for (i, &pinned) in model.pinned().iter().enumerate() {
+                if pinned {
+                    assert_eq!(a.positions[i], start.positions[i]);
+                }
+            }
+        }
+    }
+    // The stencil kernels did run (the two differ by rounding).
+    assert!(differing > 0);
+}
+
 #[test]
 fn pbd_stencil_kernels_agree_with_the_general_kernels_within_rounding() {
     let lab = ClothBuilder::lab().build().unwrap();
@@ -283,12 +329,6 @@ fn pbd_stencil_kernels_agree_with_the_general_kernels_within_rounding() {
             };
             let (a, _) = run_any(PBD, model, &start, &params, spheres, 3);
             let (b, _) = run_any(PBD, model, &start, &general, spheres, 3);
-            let apart = |p: &[Vec3A], q: &[Vec3A]| {
-                p.iter()
-                    .zip(q)
-                    .map(|(p, q)| (*p - *q).abs().max_element())
-                    .fold(0.0f32, f32::max)
-            };
             let scale = model.size();
             let worst = apart(&a.positions, &b.positions);
             assert!(worst <= 2e-5 * scale, "{name}: positions {worst} apart");

@@ -4,7 +4,9 @@
 //! so it is solved exactly, row by row, by dividing by the particle's mass:
 //! `v⁺ = v + h M⁻¹ f(x)`, then `x ← x + h v⁺`. No factorisation or iteration
 //! is needed. `f` holds spring, gravity and penalty forces; fixed particles
-//! are skipped. The step is explicit in the forces, so it is stable only
+//! are skipped. A cloth whose springs form a stencil (every builder's
+//! grid) sums its spring terms on the structure-of-arrays kernels
+//! (`stencil`), unless [`StepParams::stencil`] is off. The step is explicit in the forces, so it is stable only
 //! for `h` below about `2/ω_max` (`ω_max²` the largest eigenvalue of
 //! `M⁻¹K`); past that it diverges, and the divergence guard catches it.
 
@@ -14,6 +16,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::kernels::{spring_terms, stiffness_coeffs};
+use super::stencil::StencilWorkspace;
 use super::{Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -46,27 +49,44 @@ impl Method for SymplecticSolver {
         spheres: &[PenaltySphere],
         ws: &mut SymplecticWorkspace,
     ) -> Result<StepReport, StepError> {
-        ws.terms
-            .resize(model.topology().springs().len(), Vec3A::ZERO);
-        // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
-        stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
-        spring_terms(params, model, &state.positions, &ws.coeffs, &mut ws.terms);
         let h = params.dt as f32;
         let gravity = Vec3A::from(params.gravity);
         let adjacency = model.topology().adjacency();
         let pinned = model.pinned();
+        let n = model.vertex_count();
+        // The structure-of-arrays kernels where the springs form a stencil:
+        // per vertex, the sum of its springs' terms.
+        let stencil = model.topology().stencil().filter(|_| params.stencil);
+        if let Some(stencil) = stencil {
+            let k = params.stiffness.as_array();
+            ws.stencil
+                .load(stencil, k, &state.positions, Vec3A::ZERO, false);
+            ws.sums.resize(n, Vec3A::ZERO);
+            ws.stencil
+                .spring_sums(params.simd, params.parallel, &mut ws.sums);
+        } else {
+            ws.terms
+                .resize(model.topology().springs().len(), Vec3A::ZERO);
+            // terms[e] = k(1 − L/l)(x_a − x_b) = −(spring force on a).
+            stiffness_coeffs(model, &params.stiffness, &mut ws.coeffs);
+            spring_terms(params, model, &state.positions, &ws.coeffs, &mut ws.terms);
+        }
         for (i, &m) in model.masses().iter().enumerate() {
             if pinned[i] {
                 continue;
             }
             let x = state.positions[i];
             let mut f = gravity * m;
-            let (starts, ends) = adjacency.by_side(i);
-            for &e in starts {
-                f -= ws.terms[e as usize];
-            }
-            for &e in ends {
-                f += ws.terms[e as usize];
+            if stencil.is_some() {
+                f -= ws.sums[i];
+            } else {
+                let (starts, ends) = adjacency.by_side(i);
+                for &e in starts {
+                    f -= ws.terms[e as usize];
+                }
+                for &e in ends {
+                    f += ws.terms[e as usize];
+                }
             }
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x) {
@@ -90,4 +110,8 @@ impl Method for SymplecticSolver {
 pub struct SymplecticWorkspace {
     terms: Vec<Vec3A>,
     coeffs: Vec<[f32; 2]>,
+    /// Per vertex, its springs' terms summed (the stencil kernels).
+    sums: Vec<Vec3A>,
+    /// The structure-of-arrays state of the stencil kernels.
+    stencil: StencilWorkspace,
 }
