@@ -176,8 +176,9 @@
 //! - A cloth whose springs form a stencil — a grid numbered row by row, as
 //!   every builder's, so that each spring `(a, a + o)` belongs to one of at
 //!   most eight offset families `o` — runs the implicit iteration (Jacobi,
-//!   Chebyshev), PBD's strain limiting and symplectic Euler's spring forces
-//!   on structure-of-arrays kernels instead (`solver::stencil`, `solver::pbd_stencil`, built with the
+//!   Chebyshev), PBD's strain limiting, symplectic Euler's spring forces
+//!   and projective dynamics' local step on structure-of-arrays kernels
+//!   instead (`solver::stencil`, `solver::pbd_stencil`, built with the
 //!   topology, invisible to users): a
 //!   family's springs are two contiguous runs of positions, so both passes
 //!   are plain streams the compiler vectorises, compiled for SSE2/NEON,

@@ -86,8 +86,9 @@ pub struct StepParams {
     /// trades speed.
     pub simd: super::Simd,
     /// Whether a cloth whose springs form a stencil (a grid numbered row by
-    /// row, as every builder's) runs the implicit iteration's, PBD's and
-    /// symplectic Euler's structure-of-arrays kernels (default `true`; about 2× faster on the
+    /// row, as every builder's) runs the implicit iteration's, PBD's,
+    /// symplectic Euler's and projective dynamics' local step's
+    /// structure-of-arrays kernels (default `true`; about 2× faster on the
     /// lab cloth and 2.5× at 256²: see `docs/perf.md`). They agree with the general
     /// kernels within `f32` rounding, not bitwise: a vertex sums its
     /// springs in another order (and PBD adds the step's move to the

@@ -12,7 +12,10 @@
 //! `k_e/2 min_{‖d‖ = L_e} ‖(x_a − x_b) − d‖²` and alternating:
 //!
 //! 1. **local**: each spring's projection `d_e = L_e (x_a − x_b)/‖x_a − x_b‖`
-//!    (the packed-SIMD spring pass the other methods share);
+//!    (the packed-SIMD spring pass the other methods share; on a cloth whose
+//!    springs form a stencil, the stencil kernels' spring pass gives each
+//!    `k_e·d_e` and sums them per vertex for the right-hand side, unless
+//!    [`StepParams::stencil`] is off);
 //! 2. **global**: `(M/h² + Σ k_e A_eᵀA_e) x = M/h² x̃ + M g + Σ k_e A_eᵀ d_e`.
 //!
 //! The global matrix `S` is a weighted graph Laplacian plus the mass
@@ -68,6 +71,7 @@ use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::{Springs, dot, spring_scales};
 use super::simd::{Simd, spring_products};
+use super::stencil::StencilWorkspace;
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -230,6 +234,12 @@ pub struct ProjectiveWorkspace {
     parallel: bool,
     /// This step's [`StepParams::simd`].
     simd: Simd,
+    /// This step's [`StepParams::stencil`] and stiffness per kind.
+    stencil_on: bool,
+    kinds_k: [f32; 3],
+    /// The stencil kernels' state, and each vertex's `Σ ±k_e·d_e`.
+    stencil: StencilWorkspace,
+    sums: Vec<Vec3A>,
     /// Factorisations so far (for tests: refactorised only when needed).
     factorizations: u32,
 }
@@ -388,9 +398,25 @@ impl ProjectiveWorkspace {
         x: &[Vec3A],
         spheres: &[PenaltySphere],
     ) -> Result<(), SolveError> {
-        let d = &mut self.d;
-        spring_products(self.simd, Springs::of(model), &self.coeffs, x, d);
-        self.global(model, x, spheres)
+        match model.topology().stencil().filter(|_| self.stencil_on) {
+            // Each spring's `k_e·d_e` on the stencil kernels, summed per
+            // vertex.
+            Some(stencil) => {
+                self.stencil.load_projection(stencil, self.kinds_k, x);
+                self.sums.resize(x.len(), Vec3A::ZERO);
+                self.stencil
+                    .spring_sums(self.simd, self.parallel, &mut self.sums);
+                let sums = std::mem::take(&mut self.sums);
+                let solved = self.global(model, x, spheres, Some(&sums));
+                self.sums = sums;
+                solved
+            }
+            None => {
+                let d = &mut self.d;
+                spring_products(self.simd, Springs::of(model), &self.coeffs, x, d);
+                self.global(model, x, spheres, None)
+            }
+        }
     }
 
     /// The local step alone, returning the spring and penalty energy at `x`
@@ -421,25 +447,32 @@ impl ProjectiveWorkspace {
         energy
     }
 
-    /// The global step from the projections in `self.d`: the right-hand
-    /// side at `x`, solved into `self.rhs`.
+    /// The global step: the right-hand side at `x` from each vertex's
+    /// `Σ ±k_e·d_e` in `sums` (the stencil kernels), or else from the
+    /// projections in `self.d`, solved into `self.rhs`.
     fn global(
         &mut self,
         model: &ClothModel,
         x: &[Vec3A],
         spheres: &[PenaltySphere],
+        sums: Option<&[Vec3A]>,
     ) -> Result<(), SolveError> {
         let m = self.free.len();
         let adjacency = model.topology().adjacency();
         for (f, &i) in self.free.iter().enumerate() {
             let i = i as usize;
-            let (starts, ends) = adjacency.by_side(i);
             let mut acc = self.base[f];
-            for &e in starts {
-                acc += self.k[e as usize] * self.d[e as usize].as_dvec3();
-            }
-            for &e in ends {
-                acc -= self.k[e as usize] * self.d[e as usize].as_dvec3();
+            match sums {
+                Some(sums) => acc += sums[i].as_dvec3(),
+                None => {
+                    let (starts, ends) = adjacency.by_side(i);
+                    for &e in starts {
+                        acc += self.k[e as usize] * self.d[e as usize].as_dvec3();
+                    }
+                    for &e in ends {
+                        acc -= self.k[e as usize] * self.d[e as usize].as_dvec3();
+                    }
+                }
             }
             for (s, sphere) in spheres.iter().enumerate() {
                 let near = s < 64 && self.near[f] & (1 << s) != 0;
@@ -535,7 +568,7 @@ impl ProjectiveSolver {
                     + Self::inertia(model, x, ws, inv_h2, gravity);
             }
             accepted = energy;
-            ws.global(model, x, spheres)?;
+            ws.global(model, x, spheres, None)?;
             // g = G(x) in ws.rhs, f = g − x.
             let first = k == 0;
             if ws.aa_dg.len() < window {
@@ -700,6 +733,8 @@ impl Method for ProjectiveSolver {
         ws.rhs.resize(3 * m, 0.0);
         ws.parallel = params.parallel;
         ws.simd = params.simd;
+        ws.stencil_on = params.stencil;
+        ws.kinds_k = params.stiffness.as_array();
         ws.base.resize(m, DVec3::ZERO);
         ws.x_tilde.resize(n, Vec3A::ZERO);
         let ClothState {

@@ -160,8 +160,9 @@ pub(crate) struct StencilWorkspace {
     /// where there is none); `n` entries per family.
     alpha: Vec<f32>,
     beta: Vec<f32>,
-    /// The stencil's id and the stiffness bits `alpha` and `beta` are for.
-    coefficients: Option<(u64, [u32; 3])>,
+    /// The stencil's id, the stiffness bits and the kind (projection or
+    /// not) `alpha` and `beta` are for.
+    coefficients: Option<(u64, [u32; 3], bool)>,
     /// `[x…, y…, z…]`, `n` each.
     x: Vec<f32>,
     prev: Vec<f32>,
@@ -189,25 +190,51 @@ impl StencilWorkspace {
         offset: Vec3A,
         chebyshev: bool,
     ) {
+        self.coefficients_for(stencil, k, false);
+        self.positions(stencil, x, offset, chebyshev);
+    }
+
+    /// Loads projective dynamics' local step at `x`: the coefficients
+    /// `[α, β] = [0, −kL]`, so that a spring's term is `k·L/l·d`, its
+    /// stiffness times its projection.
+    pub(crate) fn load_projection(&mut self, stencil: &Stencil, k: [f32; 3], x: &[Vec3A]) {
+        self.coefficients_for(stencil, k, true);
+        self.positions(stencil, x, Vec3A::ZERO, false);
+    }
+
+    /// The coefficients `[k, kL]`, or `[0, −kL]` for `projection`, per
+    /// spring; kept while the stencil, `k` and the kind stay the same.
+    fn coefficients_for(&mut self, stencil: &Stencil, k: [f32; 3], projection: bool) {
+        let key = (stencil.id, k.map(f32::to_bits), projection);
+        if self.coefficients == Some(key) {
+            return;
+        }
+        // Per kind, and 0 where no spring starts (NONE = 3).
+        let k = [k[0], k[1], k[2], 0.0];
+        let stiffness = stencil.kinds.iter().map(|&kind| k[usize::from(kind & 3)]);
+        self.alpha.clear();
+        self.beta.clear();
+        if projection {
+            self.alpha.resize(stencil.kinds.len(), 0.0);
+            self.beta
+                .extend(stiffness.zip(&stencil.rest).map(|(k, l)| -(k * l)));
+        } else {
+            self.alpha.extend(stiffness);
+            // `k·L`, as the general kernels' coefficients.
+            self.beta
+                .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
+        }
+        self.coefficients = Some(key);
+    }
+
+    /// The positions `x`, the targets `x + offset` and (for `chebyshev`)
+    /// the previous iterate, and the terms' zero pads.
+    fn positions(&mut self, stencil: &Stencil, x: &[Vec3A], offset: Vec3A, chebyshev: bool) {
         let n = x.len();
         let families = stencil.families();
         self.n = n;
         self.pad = stencil.max_offset();
         self.offsets.clone_from(&stencil.offsets);
-        // The coefficients change only with the stiffness (or the cloth).
-        let key = (stencil.id, k.map(f32::to_bits));
-        if self.coefficients != Some(key) {
-            // Per kind, and 0 where no spring starts (NONE = 3).
-            let k = [k[0], k[1], k[2], 0.0];
-            self.alpha.clear();
-            self.alpha
-                .extend(stencil.kinds.iter().map(|&kind| k[usize::from(kind & 3)]));
-            self.beta.clear();
-            // `k·L`, as the general kernels' coefficients.
-            self.beta
-                .extend(self.alpha.iter().zip(&stencil.rest).map(|(k, l)| k * l));
-            self.coefficients = Some(key);
-        }
         to_soa(x, &mut self.x);
         self.target.clear();
         for (c, o) in offset.to_array().into_iter().enumerate() {

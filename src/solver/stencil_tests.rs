@@ -7,6 +7,7 @@ use crate::methods::{AnyMethod, AnyWorkspace};
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::implicit::ImplicitSolver;
 use crate::solver::pbd::PbdSolver;
+use crate::solver::projective::ProjectiveSolver;
 use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
 
@@ -201,7 +202,7 @@ fn stencil_kernels_give_the_same_bits_at_every_simd_level_run_after_run_and_on_a
     let methods = METHODS
         .map(AnyMethod::Implicit)
         .into_iter()
-        .chain([PBD, SYMPLECTIC]);
+        .chain([PBD, SYMPLECTIC, PD]);
     for (method, spheres) in
         methods.flat_map(|m| [(m, &[][..]), (m, std::slice::from_ref(&sphere))])
     {
@@ -252,7 +253,7 @@ fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
     // and the lab cloth again; each must equal the same step on a fresh
     // workspace (coefficients rebuilt). Chebyshev, and PBD (its own
     // kernels: rest lengths and pins).
-    for method in [AnyMethod::Implicit(METHODS[1]), PBD, SYMPLECTIC] {
+    for method in [AnyMethod::Implicit(METHODS[1]), PBD, SYMPLECTIC, PD] {
         let mut ws = AnyWorkspace::default();
         let steps = [
             (&lab, &StepParams::LAB),
@@ -274,6 +275,46 @@ fn a_reused_workspace_follows_a_change_of_stiffness_or_cloth() {
 
 /// PBD (32 iterations), which runs its own stencil kernels.
 const PBD: AnyMethod = AnyMethod::Pbd(PbdSolver::new(32));
+
+/// Projective dynamics (10 Chebyshev iterations), whose local step and
+/// right-hand side run on the stencil kernels.
+const PD: AnyMethod = AnyMethod::Projective(ProjectiveSolver::chebyshev(10));
+
+#[test]
+fn projective_stencil_local_steps_agree_with_the_general_kernels_within_rounding() {
+    let lab = ClothBuilder::lab().build().unwrap();
+    let assignment = ClothBuilder::assignment(12, 12).build().unwrap();
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, -3.0, 0.0), 3.0, 10_000.0);
+    let stiff = StepParams {
+        stiffness: SpringStiffness::uniform(1e6),
+        ..StepParams::LAB
+    };
+    let mut differing = 0;
+    for (name, model) in [("lab", &lab), ("assignment", &assignment)] {
+        let start = swinging(model);
+        for params in [StepParams::LAB, stiff] {
+            for spheres in [&[][..], &[sphere]] {
+                let general = StepParams {
+                    stencil: false,
+                    ..params
+                };
+                let (a, ra) = run_any(PD, model, &start, &params, spheres, 3);
+                let (b, rb) = run_any(PD, model, &start, &general, spheres, 3);
+                let worst = apart(&a.positions, &b.positions);
+                assert!(worst <= 2e-5 * model.size(), "{name}: {worst} apart");
+                let (ea, eb) = (ra.relative_error.unwrap(), rb.relative_error.unwrap());
+                assert!(
+                    (ea - eb).abs() <= 0.05 * eb.max(1e-3),
+                    "{name}: relative errors {ea} and {eb}"
+                );
+                assert_ne!(bits(&a), bits(&start));
+                differing += usize::from(bits(&a) != bits(&b));
+            }
+        }
+    }
+    // The stencil kernels did run (the two differ by rounding).
+    assert!(differing > 0);
+}
 
 /// Symplectic Euler, whose spring sums run on the stencil kernels.
 const SYMPLECTIC: AnyMethod = AnyMethod::Symplectic(SymplecticSolver);
