@@ -207,7 +207,7 @@
 //! - The frame: the cloth systems run in [`ClothSchedule`], single-threaded,
 //!   from one exclusive system, and the `PostUpdate` pin-following system
 //!   runs only when a cloth's entity moved; one lab cloth adds its step and
-//!   about 2 µs to Bevy's frame, under either executor (`docs/perf.md`,
+//!   2–8 µs (by run) to Bevy's frame, under either executor (`docs/perf.md`,
 //!   "The frame").
 //! - `cargo run --release -p bevy_cloth_report -- --perf` writes
 //!   `docs/perf.md`: every method from 21² to 256² vertices, 100 cloths in
