@@ -185,8 +185,8 @@
 //!   AVX2 and AVX-512 and chosen at run time. They give the same bits at
 //!   every level and agree with the general kernels within `f32` rounding
 //!   (a vertex sums its springs family by family); about 2× faster on the
-//!   lab cloth and 2.5× at 256² (`docs/perf.md`); PBD 2.7× on the lab cloth,
-//!   symplectic Euler 1.7–1.8×.
+//!   lab cloth and 2.5× at 256² (`docs/perf.md`); PBD 2.8× on the lab cloth,
+//!   symplectic Euler 1.6–1.7×.
 //!   [`solver::StepParams::stencil`] turns them off for comparison.
 //! - Memory order: the builders' grids are numbered row by row, so a
 //!   spring's two ends are at most a row apart in memory; a mesh read by

@@ -25,7 +25,7 @@ use super::kernels::{CHUNK, parallel_pool};
 use super::pbd::SELF_WEIGHT;
 use super::phases::run_phases;
 use super::simd::{Simd, at_level};
-use super::stencil::{Ends, NONE, Ptr, PtrV, Stencil, Terms, to_soa};
+use super::stencil::{Ends, NONE, Ptr, PtrV, Stencil, Terms, padded_rows, to_soa};
 
 /// The PBD iteration's arrays, sized on first use and reused after.
 #[derive(Clone, Debug, Default)]
@@ -90,14 +90,8 @@ impl PbdStencilWorkspace {
         self.pins.extend((0..n).filter(|&i| pinned[i]));
         to_soa(x, &mut self.x);
         self.x0.clone_from(&self.x);
-        let stride = self.pad + n;
-        let len = stencil.families() * 3 * stride;
         for buffer in [&mut self.first, &mut self.second] {
-            // The pads must read as zero; the proposal pass writes the rest.
-            buffer.resize(len, 0.0);
-            for row in buffer.chunks_mut(stride) {
-                row[..self.pad].fill(0.0);
-            }
+            padded_rows(buffer, stencil.families() * 3, n, self.pad);
         }
     }
 

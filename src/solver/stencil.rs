@@ -191,7 +191,15 @@ impl StencilWorkspace {
         chebyshev: bool,
     ) {
         self.coefficients_for(stencil, k, false);
-        self.positions(stencil, x, offset, chebyshev);
+        self.positions(stencil, x, Some(offset), chebyshev);
+    }
+
+    /// Loads the spring terms' inputs alone (symplectic Euler's forces,
+    /// [`spring_sums`](Self::spring_sums)): the coefficients `[k, kL]` and
+    /// the positions `x`, no targets.
+    pub(crate) fn load_springs(&mut self, stencil: &Stencil, k: [f32; 3], x: &[Vec3A]) {
+        self.coefficients_for(stencil, k, false);
+        self.positions(stencil, x, None, false);
     }
 
     /// Loads projective dynamics' local step at `x`: the coefficients
@@ -199,7 +207,7 @@ impl StencilWorkspace {
     /// stiffness times its projection.
     pub(crate) fn load_projection(&mut self, stencil: &Stencil, k: [f32; 3], x: &[Vec3A]) {
         self.coefficients_for(stencil, k, true);
-        self.positions(stencil, x, Vec3A::ZERO, false);
+        self.positions(stencil, x, None, false);
     }
 
     /// The coefficients `[k, kL]`, or `[0, −kL]` for `projection`, per
@@ -227,9 +235,16 @@ impl StencilWorkspace {
         self.coefficients = Some(key);
     }
 
-    /// The positions `x`, the targets `x + offset` and (for `chebyshev`)
-    /// the previous iterate, and the terms' zero pads.
-    fn positions(&mut self, stencil: &Stencil, x: &[Vec3A], offset: Vec3A, chebyshev: bool) {
+    /// The positions `x`, the targets `x + offset` (none without an
+    /// offset: only the vertex and gradient passes read them) and (for
+    /// `chebyshev`) the previous iterate, and the terms' zero pads.
+    fn positions(
+        &mut self,
+        stencil: &Stencil,
+        x: &[Vec3A],
+        offset: Option<Vec3A>,
+        chebyshev: bool,
+    ) {
         let n = x.len();
         let families = stencil.families();
         self.n = n;
@@ -237,19 +252,14 @@ impl StencilWorkspace {
         self.offsets.clone_from(&stencil.offsets);
         to_soa(x, &mut self.x);
         self.target.clear();
-        for (c, o) in offset.to_array().into_iter().enumerate() {
+        for (c, o) in offset.iter().flat_map(|o| o.to_array()).enumerate() {
             let row = &self.x[c * n..(c + 1) * n];
             self.target.extend(row.iter().map(|&x| x + o));
         }
         if chebyshev {
             self.prev.clone_from(&self.x);
         }
-        let stride = self.pad + n;
-        // The pads must read as zero; the spring pass writes every term.
-        self.terms.resize(families * 3 * stride, 0.0);
-        for row in self.terms.chunks_mut(stride) {
-            row[..self.pad].fill(0.0);
-        }
+        padded_rows(&mut self.terms, families * 3, n, self.pad);
     }
 
     /// The iteration after [`load`](Self::load): `iterations` times a
@@ -347,11 +357,8 @@ impl StencilWorkspace {
             offsets: &self.offsets,
             alpha: &self.alpha,
             beta: &self.beta,
-            target: [
-                &self.target[..n],
-                &self.target[n..2 * n],
-                &self.target[2 * n..3 * n],
-            ],
+            // Empty when loaded without targets (no pass then reads them).
+            target: [0, 1, 2].map(|c| self.target.get(c * n..(c + 1) * n).unwrap_or(&[])),
             data,
             chebyshev,
             buffers: [Ptr(self.x.as_mut_ptr()), Ptr(self.prev.as_mut_ptr())],
@@ -635,6 +642,17 @@ impl Run<'_> {
                 }
             }
         }
+    }
+}
+
+/// Sizes `buffer` as `rows` rows of `pad` zeros then `n` values, and
+/// zeroes the pads (the vertex passes read a family's terms at `i − o`);
+/// the spring passes write the rest.
+pub(super) fn padded_rows(buffer: &mut Vec<f32>, rows: usize, n: usize, pad: usize) {
+    let stride = pad + n;
+    buffer.resize(rows * stride, 0.0);
+    for row in buffer.chunks_mut(stride) {
+        row[..pad].fill(0.0);
     }
 }
 

@@ -59,8 +59,7 @@ impl Method for SymplecticSolver {
         let stencil = model.topology().stencil().filter(|_| params.stencil);
         if let Some(stencil) = stencil {
             let k = params.stiffness.as_array();
-            ws.stencil
-                .load(stencil, k, &state.positions, Vec3A::ZERO, false);
+            ws.stencil.load_springs(stencil, k, &state.positions);
             ws.sums.resize(n, Vec3A::ZERO);
             ws.stencil
                 .spring_sums(params.simd, params.parallel, &mut ws.sums);
