@@ -377,7 +377,7 @@ pub use solver::exact::ExactSolver;
 pub use solver::implicit::{ImplicitSolver, Rho};
 pub use solver::linear::LinearImplicitSolver;
 pub use solver::pbd::PbdSolver;
-pub use solver::projective::ProjectiveSolver;
+pub use solver::projective::{GlobalSolve, ProjectiveSolver};
 pub use solver::symplectic::SymplecticSolver;
 
 /// Everything a game needs, in one import.
@@ -407,7 +407,7 @@ pub mod prelude {
         SpringJacobian,
     };
     pub use crate::solver::pbd::PbdSolver;
-    pub use crate::solver::projective::ProjectiveSolver;
+    pub use crate::solver::projective::{GlobalSolve, ProjectiveSolver};
     pub use crate::solver::symplectic::SymplecticSolver;
     pub use crate::solver::{Method, ParamError, SpringStiffness, StepParams};
 }

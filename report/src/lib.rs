@@ -28,6 +28,7 @@ pub mod stability;
 
 use bevy_cloth::methods::AnyMethod;
 use bevy_cloth::solver::linear::SpringJacobian;
+use bevy_cloth::solver::projective::GlobalSolve;
 
 /// A method's name with its iteration count, as the pages' tables and
 /// charts name a setting: `chebyshev 32`, `linear-cg 25`, `exact`.
@@ -46,6 +47,13 @@ pub fn variant(method: &AnyMethod) -> String {
         AnyMethod::Linear(l) if l.springs == SpringJacobian::Exact => {
             format!("{} exact-k", method.name())
         }
+        // Projective dynamics' global solve, when it is not the automatic
+        // choice.
+        AnyMethod::Projective(p) => match p.global {
+            GlobalSolve::Auto => method.name().to_owned(),
+            GlobalSolve::Direct => format!("{} direct", method.name()),
+            GlobalSolve::Multigrid { cycles } => format!("{} mg{cycles}", method.name()),
+        },
         _ => method.name().to_owned(),
     }
 }

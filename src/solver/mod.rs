@@ -41,6 +41,7 @@ pub mod kernels;
 pub mod linear;
 pub mod measures;
 pub mod method;
+mod multigrid;
 pub mod params;
 pub mod pbd;
 mod pbd_stencil;

@@ -70,6 +70,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::{Springs, dot, spring_scales};
+use super::multigrid::Multigrid;
 use super::simd::{Simd, spring_products};
 use super::stencil::StencilWorkspace;
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
@@ -112,6 +113,46 @@ pub struct ProjectiveSolver {
     /// iterate is taken and the history restarts. Not together with
     /// `chebyshev` ([`ParamError::Acceleration`]).
     pub anderson: u32,
+    /// How each iteration solves the global system.
+    pub global: GlobalSolve,
+}
+
+/// How projective dynamics solves its global system `S x = b` each
+/// iteration.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Default)]
+#[reflect(Debug, PartialEq, Default)]
+pub enum GlobalSolve {
+    /// [`Direct`](Self::Direct) below [`MULTIGRID_FROM`] free vertices,
+    /// [`Multigrid`](Self::Multigrid) with [`MULTIGRID_CYCLES`] from there.
+    #[default]
+    Auto,
+    /// Exactly, by the sparse Cholesky factor.
+    Direct,
+    /// Approximately, by this many algebraic-multigrid V-cycles from the
+    /// current iterate (see the [module docs](self)). The iteration's fixed
+    /// point is the same; each iteration gains a little less.
+    Multigrid {
+        /// V-cycles per iteration (at least 1).
+        cycles: u32,
+    },
+}
+
+/// [`GlobalSolve::Auto`] uses multigrid from this many free vertices.
+pub const MULTIGRID_FROM: usize = 4096;
+
+/// [`GlobalSolve::Auto`]'s V-cycles per iteration.
+pub const MULTIGRID_CYCLES: u32 = 1;
+
+impl GlobalSolve {
+    /// The V-cycles per iteration for `free` free vertices, or `None` for
+    /// the direct solve.
+    fn cycles(self, free: usize) -> Option<u32> {
+        match self {
+            Self::Auto => (free >= MULTIGRID_FROM).then_some(MULTIGRID_CYCLES),
+            Self::Direct => None,
+            Self::Multigrid { cycles } => Some(cycles),
+        }
+    }
 }
 
 impl ProjectiveSolver {
@@ -121,6 +162,7 @@ impl ProjectiveSolver {
             iterations,
             chebyshev: None,
             anderson: 0,
+            global: GlobalSolve::Auto,
         }
     }
 
@@ -130,6 +172,7 @@ impl ProjectiveSolver {
             iterations,
             chebyshev: Some(Rho::Auto),
             anderson: 0,
+            global: GlobalSolve::Auto,
         }
     }
 
@@ -139,7 +182,16 @@ impl ProjectiveSolver {
             iterations,
             chebyshev: None,
             anderson: window,
+            global: GlobalSolve::Auto,
         }
+    }
+}
+
+impl ProjectiveSolver {
+    /// The same, with this global solve.
+    pub const fn with_global(mut self, global: GlobalSolve) -> Self {
+        self.global = global;
+        self
     }
 }
 
@@ -158,11 +210,14 @@ struct FactorKey {
     masses: Vec<f32>,
     stiffness: [u32; 3],
     dt: u64,
+    /// The multigrid's cycles, or `None` for the factor.
+    cycles: Option<u32>,
 }
 
 impl FactorKey {
-    fn of(model: &ClothModel, params: &StepParams) -> Self {
+    fn of(model: &ClothModel, params: &StepParams, cycles: Option<u32>) -> Self {
         Self {
+            cycles,
             topology: std::sync::Arc::as_ptr(model.topology_arc()) as usize,
             pins: model.pins().to_vec(),
             masses: model.masses().to_vec(),
@@ -171,8 +226,9 @@ impl FactorKey {
         }
     }
 
-    fn matches(&self, model: &ClothModel, params: &StepParams) -> bool {
-        self.topology == std::sync::Arc::as_ptr(model.topology_arc()) as usize
+    fn matches(&self, model: &ClothModel, params: &StepParams, global: GlobalSolve) -> bool {
+        self.cycles == global.cycles(model.vertex_count() - model.pins().len())
+            && self.topology == std::sync::Arc::as_ptr(model.topology_arc()) as usize
             && self.pins == model.pins()
             && self.masses == model.masses()
             && self.stiffness == params.stiffness.as_array().map(f32::to_bits)
@@ -196,6 +252,11 @@ pub struct ProjectiveWorkspace {
     row_idx: Vec<usize>,
     values: Vec<f64>,
     cholesky: SparseCholesky,
+    /// The multigrid hierarchy of `S` and its V-cycles per iteration, when
+    /// the global solve is multigrid; its right-hand side and solution.
+    multigrid: Option<(Multigrid, u32)>,
+    mg_b: Vec<Vec3A>,
+    mg_x: Vec<Vec3A>,
     /// Per spring `[0, −L]`: `spring_products` gives `L/l·d`.
     coeffs: Vec<[f32; 2]>,
     /// Per spring `k` (in `f64`).
@@ -240,6 +301,9 @@ pub struct ProjectiveWorkspace {
     /// The stencil kernels' state, and each vertex's `Σ ±k_e·d_e`.
     stencil: StencilWorkspace,
     sums: Vec<Vec3A>,
+    /// This step's `1/h²` and gravity.
+    inv_h2: f64,
+    gravity: DVec3,
     /// Factorisations so far (for tests: refactorised only when needed).
     factorizations: u32,
 }
@@ -249,19 +313,34 @@ impl core::fmt::Debug for ProjectiveWorkspace {
         f.debug_struct("ProjectiveWorkspace")
             .field("free_vertices", &self.free.len())
             .field("factorizations", &self.factorizations)
+            .field(
+                "multigrid_levels",
+                &self.multigrid.as_ref().map(|(m, _)| m.depth()),
+            )
             .finish_non_exhaustive()
     }
 }
 
 impl ProjectiveWorkspace {
-    /// How many times the global matrix was factorised.
+    /// How many times the global matrix was factorised (or its multigrid
+    /// hierarchy built).
     pub fn factorizations(&self) -> u32 {
         self.factorizations
     }
 
-    /// Builds and factorises `S` unless the key still matches.
-    fn prepare(&mut self, model: &ClothModel, params: &StepParams) -> Result<(), SolveError> {
-        if self.key.as_ref().is_some_and(|k| k.matches(model, params)) {
+    /// Builds and factorises `S` (or builds its multigrid hierarchy) unless
+    /// the key still matches.
+    fn prepare(
+        &mut self,
+        model: &ClothModel,
+        params: &StepParams,
+        global: GlobalSolve,
+    ) -> Result<(), SolveError> {
+        if self
+            .key
+            .as_ref()
+            .is_some_and(|k| k.matches(model, params, global))
+        {
             return Ok(());
         }
         self.key = None;
@@ -336,8 +415,10 @@ impl ProjectiveWorkspace {
         self.contact_k.clear();
         self.contact_k.resize(m, 0.0);
         self.cholesky.reset();
+        let cycles = global.cycles(m);
+        self.multigrid = cycles.map(|c| (Multigrid::default(), c));
         self.factorize()?;
-        self.key = Some(FactorKey::of(model, params));
+        self.key = Some(FactorKey::of(model, params, cycles));
         Ok(())
     }
 
@@ -345,7 +426,10 @@ impl ProjectiveWorkspace {
     /// symbolic analysis exists).
     fn factorize(&mut self) -> Result<(), SolveError> {
         let m = self.free.len();
-        if m > 0 {
+        if let Some((multigrid, _)) = &mut self.multigrid {
+            // `S` is symmetric: its columns are its rows.
+            *multigrid = Multigrid::build(&self.col_ptr, &self.row_idx, &self.values)?;
+        } else if m > 0 {
             let symbolic =
                 SymbolicSparseColMatRef::new_checked(m, m, &self.col_ptr, None, &self.row_idx);
             let matrix = SparseColMatRef::new(symbolic, &self.values);
@@ -398,7 +482,21 @@ impl ProjectiveWorkspace {
         x: &[Vec3A],
         spheres: &[PenaltySphere],
     ) -> Result<(), SolveError> {
-        match model.topology().stencil().filter(|_| self.stencil_on) {
+        let stencil = model.topology().stencil().filter(|_| self.stencil_on);
+        match stencil {
+            // The multigrid solves for the correction from the objective's
+            // gradient: each spring's `k(1 − L/l)d` on the stencil kernels,
+            // summed per vertex.
+            Some(stencil) if self.multigrid.is_some() => {
+                self.stencil.load_springs(stencil, self.kinds_k, x);
+                self.sums.resize(x.len(), Vec3A::ZERO);
+                self.stencil
+                    .spring_sums(self.simd, self.parallel, &mut self.sums);
+                let sums = std::mem::take(&mut self.sums);
+                let solved = self.global(model, x, spheres, Some(&sums));
+                self.sums = sums;
+                solved
+            }
             // Each spring's `k_e·d_e` on the stencil kernels, summed per
             // vertex.
             Some(stencil) => {
@@ -449,7 +547,9 @@ impl ProjectiveWorkspace {
 
     /// The global step: the right-hand side at `x` from each vertex's
     /// `Σ ±k_e·d_e` in `sums` (the stencil kernels), or else from the
-    /// projections in `self.d`, solved into `self.rhs`.
+    /// projections in `self.d`, solved into `self.rhs`. With the multigrid,
+    /// `sums` holds each vertex's spring gradient instead
+    /// ([`global_multigrid`](Self::global_multigrid)).
     fn global(
         &mut self,
         model: &ClothModel,
@@ -457,6 +557,10 @@ impl ProjectiveWorkspace {
         spheres: &[PenaltySphere],
         sums: Option<&[Vec3A]>,
     ) -> Result<(), SolveError> {
+        if self.multigrid.is_some() {
+            self.global_multigrid(model, x, spheres, sums);
+            return Ok(());
+        }
         let m = self.free.len();
         let adjacency = model.topology().adjacency();
         for (f, &i) in self.free.iter().enumerate() {
@@ -493,6 +597,72 @@ impl ProjectiveWorkspace {
         // threads x and y go to one and z to the other.
         self.cholesky
             .solve_factored_xyz(&mut self.rhs, self.parallel)
+    }
+}
+
+impl ProjectiveWorkspace {
+    /// The global step by multigrid: `S x = b` is solved for the correction
+    /// `δ = x − x₀` from the current iterate `x₀`, whose right-hand side
+    /// `b − S x₀` is the objective's negative gradient at `x₀` (the pinned
+    /// neighbours' and the spheres' terms included): with `S δ = −∇Φ(x₀)`
+    /// the result is the same iterate as the direct solve's, and the `f32`
+    /// cycles round `δ`, not `x`. The spring gradient per vertex comes from
+    /// `sums` (the stencil kernels), or else from the projections in
+    /// `self.d`.
+    fn global_multigrid(
+        &mut self,
+        model: &ClothModel,
+        x: &[Vec3A],
+        spheres: &[PenaltySphere],
+        sums: Option<&[Vec3A]>,
+    ) {
+        let m = self.free.len();
+        let masses = model.masses();
+        let springs = model.topology().springs();
+        let adjacency = model.topology().adjacency();
+        for (f, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let mass = f64::from(masses[i]);
+            let xi = x[i].as_dvec3();
+            let mut r = mass * (self.inv_h2 * (self.x_tilde[i].as_dvec3() - xi) + self.gravity);
+            match sums {
+                Some(sums) => r -= sums[i].as_dvec3(),
+                None => {
+                    let (starts, ends) = adjacency.by_side(i);
+                    for &e in starts {
+                        let s = springs[e as usize];
+                        let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
+                        r -= self.k[e as usize] * (dx - self.d[e as usize].as_dvec3());
+                    }
+                    for &e in ends {
+                        let s = springs[e as usize];
+                        let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
+                        r += self.k[e as usize] * (dx - self.d[e as usize].as_dvec3());
+                    }
+                }
+            }
+            // A near sphere's `c·p − c·x` is its penalty force; so is a
+            // far one's explicit force.
+            for sphere in spheres {
+                if let Some(contact) = sphere.contact(x[i]) {
+                    r += contact.force.as_dvec3();
+                }
+            }
+            self.mg_b[f] = r.as_vec3a();
+        }
+        let Some((multigrid, cycles)) = &mut self.multigrid else {
+            return;
+        };
+        multigrid.set_parallel(self.parallel);
+        multigrid.solve(&mut self.mg_x, &self.mg_b, *cycles);
+        // The iterate plus the correction, into the same columns as the
+        // direct solve's.
+        for (f, delta) in self.mg_x.iter().enumerate() {
+            let x = x[self.free[f] as usize] + *delta;
+            self.rhs[f] = f64::from(x.x);
+            self.rhs[m + f] = f64::from(x.y);
+            self.rhs[2 * m + f] = f64::from(x.z);
+        }
     }
 }
 
@@ -707,6 +877,9 @@ impl Method for ProjectiveSolver {
         if self.anderson > 0 && self.chebyshev.is_some() {
             return Err(ParamError::Acceleration);
         }
+        if self.global == (GlobalSolve::Multigrid { cycles: 0 }) {
+            return Err(ParamError::Iterations);
+        }
         validate_chebyshev(self.iterations, self.chebyshev)
     }
 
@@ -722,7 +895,7 @@ impl Method for ProjectiveSolver {
         spheres: &[PenaltySphere],
         ws: &mut ProjectiveWorkspace,
     ) -> Result<StepReport, StepError> {
-        ws.prepare(model, params)?;
+        ws.prepare(model, params, self.global)?;
         let n = model.vertex_count();
         let m = ws.free.len();
         let springs = model.topology().springs();
@@ -731,6 +904,10 @@ impl Method for ProjectiveSolver {
         let masses = model.masses();
         ws.d.resize(springs.len(), Vec3A::ZERO);
         ws.rhs.resize(3 * m, 0.0);
+        if ws.multigrid.is_some() {
+            ws.mg_b.resize(m, Vec3A::ZERO);
+            ws.mg_x.resize(m, Vec3A::ZERO);
+        }
         ws.parallel = params.parallel;
         ws.simd = params.simd;
         ws.stencil_on = params.stencil;
@@ -743,6 +920,7 @@ impl Method for ProjectiveSolver {
         } = state;
         // Damping, prediction, initial guess x = x̃ (as the lab's 1.a).
         let gravity = params.gravity.as_dvec3();
+        (ws.inv_h2, ws.gravity) = (inv_h2, gravity);
         for (f, &i) in ws.free.iter().enumerate() {
             let i = i as usize;
             v[i] *= params.damping;
@@ -869,6 +1047,9 @@ mod tests {
         ClothBuilder::lab().build().unwrap()
     }
 
+    /// Both global solves on the lab cloth (where `Auto` is direct).
+    const GLOBALS: [GlobalSolve; 2] = [GlobalSolve::Direct, GlobalSolve::Multigrid { cycles: 1 }];
+
     /// The exact trajectory after `steps` steps (a swinging, bent sheet).
     fn swinging(model: &ClothModel, params: &StepParams, steps: usize) -> ClothState {
         swinging_onto(model, params, &[], steps)
@@ -949,12 +1130,19 @@ mod tests {
             .filter(|x| spheres[0].contact(**x).is_some())
             .count();
         assert!(touching > 10, "{touching} vertices in contact");
-        let error = |pd| error_against_exact_onto(&model, &params, &spheres, &start, pd);
-        let few = error(ProjectiveSolver::new(4));
-        let many = error(ProjectiveSolver::new(400));
-        let interactive = error(ProjectiveSolver::default());
-        assert!(many < 1e-3 && many < few / 10.0, "{few} → {many}");
-        assert!(interactive < 2e-2, "{interactive}");
+        for global in GLOBALS {
+            let error = |pd: ProjectiveSolver| {
+                error_against_exact_onto(&model, &params, &spheres, &start, pd.with_global(global))
+            };
+            let few = error(ProjectiveSolver::new(4));
+            let many = error(ProjectiveSolver::new(400));
+            let interactive = error(ProjectiveSolver::default());
+            assert!(
+                many < 1e-3 && many < few / 10.0,
+                "{global:?}: {few} → {many}"
+            );
+            assert!(interactive < 2e-2, "{global:?}: {interactive}");
+        }
     }
 
     #[test]
@@ -969,7 +1157,7 @@ mod tests {
         }];
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let mut ws = ProjectiveWorkspace::default();
-        let pd = ProjectiveSolver::default();
+        let pd = ProjectiveSolver::default().with_global(GlobalSolve::Multigrid { cycles: 1 });
         for _ in 0..3 {
             pd.step(&model, &mut state, &params, &far, &mut ws).unwrap();
         }
@@ -992,16 +1180,105 @@ mod tests {
         let model = lab();
         let params = StepParams::LAB;
         let start = swinging(&model, &params, 10);
-        let few = error_against_exact(&model, &params, &start, ProjectiveSolver::new(4));
-        let many = error_against_exact(&model, &params, &start, ProjectiveSolver::new(400));
-        assert!(many < 1e-3 && many < few / 10.0, "{few} → {many}");
-        let accelerated =
-            error_against_exact(&model, &params, &start, ProjectiveSolver::chebyshev(40));
-        let plain = error_against_exact(&model, &params, &start, ProjectiveSolver::new(40));
-        assert!(
-            accelerated < plain,
-            "Chebyshev {accelerated} vs plain {plain}"
-        );
+        for global in GLOBALS {
+            let error = |pd: ProjectiveSolver| {
+                error_against_exact(&model, &params, &start, pd.with_global(global))
+            };
+            let few = error(ProjectiveSolver::new(4));
+            let many = error(ProjectiveSolver::new(400));
+            assert!(
+                many < 1e-3 && many < few / 10.0,
+                "{global:?}: {few} → {many}"
+            );
+            let accelerated = error(ProjectiveSolver::chebyshev(40));
+            let plain = error(ProjectiveSolver::new(40));
+            assert!(
+                accelerated < plain,
+                "{global:?}: Chebyshev {accelerated} vs plain {plain}"
+            );
+        }
+    }
+
+    #[test]
+    fn multigrid_gives_the_direct_solves_step_on_large_cloths_and_every_path() {
+        use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+        ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+        // 101²: the automatic choice is multigrid; the assignment's six
+        // spring families; stiff; the stencil kernels and the general ones;
+        // plain, Chebyshev and Anderson.
+        let lab = ClothBuilder::lab_grid(101).build().unwrap();
+        let assignment = ClothBuilder::assignment(70, 70).build().unwrap();
+        for (model, k) in [(&lab, 8000.0), (&lab, 1e6), (&assignment, 8000.0)] {
+            let params = StepParams {
+                stiffness: SpringStiffness::uniform(k),
+                ..StepParams::LAB
+            };
+            // A bent, swinging sheet (40 lab steps), and its exact step.
+            let mut start = ClothState::at_rest(model, &Affine3A::IDENTITY);
+            let lab_method = crate::solver::implicit::ImplicitSolver::default();
+            let mut lab_ws = Default::default();
+            for _ in 0..40 {
+                lab_method
+                    .step(model, &mut start, &params, &[], &mut lab_ws)
+                    .unwrap();
+            }
+            let mut exact = start.clone();
+            ExactSolver::REFERENCE
+                .step(
+                    model,
+                    &mut exact,
+                    &params,
+                    &[],
+                    &mut ExactWorkspace::default(),
+                )
+                .unwrap();
+            for pd in [
+                ProjectiveSolver::new(20),
+                ProjectiveSolver::chebyshev(20),
+                ProjectiveSolver::anderson(10, PD_ANDERSON_WINDOW),
+            ] {
+                let step = |global: GlobalSolve, params: &StepParams| {
+                    let mut state = start.clone();
+                    let mut ws = ProjectiveWorkspace::default();
+                    pd.with_global(global)
+                        .step(model, &mut state, params, &[], &mut ws)
+                        .unwrap();
+                    (state, ws.multigrid.is_some())
+                };
+                let (direct, _) = step(GlobalSolve::Direct, &params);
+                let (auto, multigrid) = step(GlobalSolve::Auto, &params);
+                assert!(
+                    multigrid,
+                    "Auto picks multigrid at {}",
+                    model.vertex_count()
+                );
+                // As close to the exact step as the direct solve's iterate
+                // (one V-cycle per iteration gains a little less).
+                let direct = step_error(&direct.positions, &exact.positions, &start.positions);
+                let error = step_error(&auto.positions, &exact.positions, &start.positions);
+                assert!(
+                    error < 2.0 * direct + 1e-4,
+                    "{} k {k} {pd:?}: {error} against {direct}",
+                    model.vertex_count()
+                );
+                let general = StepParams {
+                    stencil: false,
+                    ..params
+                };
+                let (general, _) = step(GlobalSolve::Auto, &general);
+                let error = step_error(&general.positions, &auto.positions, &start.positions);
+                assert!(error < 1e-3, "stencil against general: {error}");
+                let serial = StepParams {
+                    parallel: false,
+                    ..params
+                };
+                assert_eq!(
+                    step(GlobalSolve::Auto, &serial).0,
+                    auto,
+                    "same bits on 1 and 2 threads"
+                );
+            }
+        }
     }
 
     #[test]
@@ -1013,17 +1290,43 @@ mod tests {
             ..StepParams::LAB
         };
         let start = swinging(&model, &params, 5);
-        let e = error_against_exact(&model, &params, &start, ProjectiveSolver::default());
-        assert!(e < 0.1, "{e}");
+        for global in GLOBALS {
+            let pd = ProjectiveSolver::default().with_global(global);
+            let e = error_against_exact(&model, &params, &start, pd);
+            assert!(e < 0.1, "{global:?}: {e}");
+        }
     }
 
     #[test]
     fn factorises_once_and_again_only_when_k_h_or_pins_change() {
+        for global in GLOBALS {
+            factorises_once_and_again_only_when_k_h_or_pins_change_with(global);
+        }
+        // Switching between the direct solve and multigrid rebuilds.
+        let model = lab();
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = ProjectiveWorkspace::default();
+        for (global, builds) in [
+            (GlobalSolve::Direct, 1),
+            (GlobalSolve::Auto, 1),
+            (GlobalSolve::Multigrid { cycles: 1 }, 2),
+            (GlobalSolve::Multigrid { cycles: 2 }, 3),
+            (GlobalSolve::Direct, 4),
+        ] {
+            ProjectiveSolver::default()
+                .with_global(global)
+                .step(&model, &mut state, &StepParams::LAB, &[], &mut ws)
+                .unwrap();
+            assert_eq!(ws.factorizations(), builds, "{global:?}");
+        }
+    }
+
+    fn factorises_once_and_again_only_when_k_h_or_pins_change_with(global: GlobalSolve) {
         let model = lab();
         let mut params = StepParams::LAB;
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let mut ws = ProjectiveWorkspace::default();
-        let pd = ProjectiveSolver::default();
+        let pd = ProjectiveSolver::default().with_global(global);
         for _ in 0..5 {
             pd.step(&model, &mut state, &params, &[], &mut ws).unwrap();
         }
@@ -1049,7 +1352,19 @@ mod tests {
 
     #[test]
     fn edge_cases_are_typed_errors_or_plain_physics() {
-        let pd = ProjectiveSolver::default();
+        for global in GLOBALS {
+            edge_cases_are_typed_errors_or_plain_physics_with(global);
+        }
+        assert_eq!(
+            ProjectiveSolver::default()
+                .with_global(GlobalSolve::Multigrid { cycles: 0 })
+                .validate(),
+            Err(ParamError::Iterations)
+        );
+    }
+
+    fn edge_cases_are_typed_errors_or_plain_physics_with(global: GlobalSolve) {
+        let pd = ProjectiveSolver::default().with_global(global);
         let model = lab();
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let mut ws = ProjectiveWorkspace::default();
@@ -1107,11 +1422,14 @@ mod tests {
                 .flat_map(|p| p.to_array().map(f32::to_bits))
                 .collect::<Vec<_>>()
         };
-        for pd in [
-            ProjectiveSolver::default(),
-            ProjectiveSolver::anderson(PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW),
-        ] {
-            assert_eq!(run(pd), run(pd));
+        for global in GLOBALS {
+            for pd in [
+                ProjectiveSolver::default(),
+                ProjectiveSolver::anderson(PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW),
+            ] {
+                let pd = pd.with_global(global);
+                assert_eq!(run(pd), run(pd));
+            }
         }
     }
 

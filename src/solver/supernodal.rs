@@ -459,7 +459,7 @@ fn split_parts<'a>(columns: &'a mut [&mut [f64]; 3], len: [usize; 2]) -> [[&'a m
 }
 
 /// Runs `f` on both items: on `pool` as two tasks, or one after the other.
-fn run_both<T: Send>(
+pub(super) fn run_both<T: Send>(
     pool: Option<&bevy::tasks::ComputeTaskPool>,
     items: [T; 2],
     f: impl Fn(T) + Send + Sync,

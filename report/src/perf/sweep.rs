@@ -15,6 +15,7 @@ use bevy_cloth::solver::implicit::ImplicitSolver;
 use bevy_cloth::solver::linear::{
     CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
 };
+use bevy_cloth::solver::projective::{GlobalSolve, PD_ITERATIONS, ProjectiveSolver};
 use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, Simd, SpringStiffness, StepParams};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -48,13 +49,24 @@ pub fn warm_state(model: &ClothModel, params: &StepParams) -> ClothState {
 /// ([`crate::label`]) and whether it is sparse (a factorisation or sparse
 /// assembly per step: capped at [`PerfConfig::max_side_sparse`]).
 pub fn sweep_methods() -> Vec<(String, AnyMethod, bool)> {
-    PRESETS
+    let mut methods: Vec<(String, AnyMethod, bool)> = PRESETS
         .iter()
         .map(|p| {
             let sparse = matches!(p.method, AnyMethod::Linear(_) | AnyMethod::Exact(_));
             (crate::label(&p.method), p.method, sparse)
         })
-        .collect()
+        .collect();
+    // `pd` with its global solve always direct: what the automatic choice
+    // of multigrid on large cloths is measured against.
+    let direct = AnyMethod::Projective(
+        ProjectiveSolver::chebyshev(PD_ITERATIONS).with_global(GlobalSolve::Direct),
+    );
+    let at = methods
+        .iter()
+        .position(|(_, m, _)| matches!(m, AnyMethod::Projective(_)))
+        .map_or(methods.len(), |p| p + 1);
+    methods.insert(at, (crate::label(&direct), direct, false));
+    methods
 }
 
 /// One timed case of the scale sweep.
