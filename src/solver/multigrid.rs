@@ -35,10 +35,11 @@
 use bevy::math::{DVec3, Vec3A};
 
 use super::SolveError;
+use super::simd::{Simd, at_level};
 use super::supernodal::run_both;
 
 /// The coarsest level is solved densely at or below this many unknowns.
-pub(super) const COARSEST: usize = 96;
+pub(super) const COARSEST: usize = 32;
 
 /// Strength of connection: `|s_ij| ≥ θ √(s_ii s_jj)`.
 const THETA: f64 = 0.08;
@@ -197,11 +198,221 @@ impl Coarse {
     }
 }
 
+/// The finest matrix as a stencil, for a cloth whose springs form one
+/// ([`Multigrid::build`]'s `fine`): vertex `i`'s row is
+/// `s_ii x_i − Σ_f (c_f[i] x_{i+o_f} + c_f[i−o_f] x_{i−o_f})`, over all `n`
+/// vertices (pinned ones too: their rows are decoupled and their
+/// corrections stay zero).
+#[derive(Clone, Debug)]
+pub(super) struct FineStencil {
+    /// The families' offsets `o_f`.
+    pub offsets: Vec<usize>,
+    /// Per family, per vertex `i`: the stiffness of the spring
+    /// `(i, i + o_f)` if there is one and both its ends are free, else 0
+    /// (`n` per family).
+    pub coeffs: Vec<Vec<f32>>,
+    /// The free vertex of each row of the matrix `build` is given.
+    pub free: Vec<u32>,
+    /// Vertices.
+    pub n: usize,
+}
+
+/// The finest level's cycle on structure-of-arrays vectors (see
+/// [`FineStencil`]): no indices in its residuals, and contiguous streams
+/// the compiler vectorises at the CPU's widest SIMD (the level of
+/// [`StepParams::simd`](super::StepParams::simd), chosen at run time).
+#[derive(Clone, Debug, Default)]
+struct Fine {
+    op: FineOp,
+    /// Per vertex: `ω / s_ii` (0 where pinned).
+    smooth: Vec<f32>,
+    free: Vec<u32>,
+    /// The prolongation's transpose with its columns as vertices.
+    pt: Csr,
+    /// `x` (padded), `b` and `r`, per coordinate.
+    x: [Vec<f32>; 3],
+    b: [Vec<f32>; 3],
+    r: [Vec<f32>; 3],
+}
+
+/// The finest matrix as a stencil (see [`FineStencil`]).
+#[derive(Clone, Debug, Default)]
+struct FineOp {
+    offsets: Vec<usize>,
+    /// The vectors' and coefficients' zero padding on each side: the
+    /// largest offset.
+    pad: usize,
+    /// Per family, `n + 2·pad` (padded).
+    coeffs: Vec<Vec<f32>>,
+    /// Per vertex: `s_ii` (1 where pinned).
+    diag: Vec<f32>,
+}
+
+/// Rows per block of the fine residual: a block's vectors stay in L1
+/// while each family adds its terms.
+const BLOCK: usize = 256;
+
+at_level! {
+    /// [`residual_kernel`] at `level`.
+    fn fine_residual(fine: &FineOp, x: &[f32], b: &[f32], r: &mut [f32]) => residual_kernel
+}
+
+/// `r = b − S x` on the stencil, `x` padded.
+#[inline(always)]
+fn residual_kernel(fine: &FineOp, x: &[f32], b: &[f32], r: &mut [f32]) {
+    let (n, p) = (r.len(), fine.pad);
+    let mut start = 0;
+    while start < n {
+        let end = (start + BLOCK).min(n);
+        let len = end - start;
+        let rb = &mut r[start..end];
+        let (bb, db, xb) = (
+            &b[start..end],
+            &fine.diag[start..end],
+            &x[p + start..p + end],
+        );
+        for i in 0..len {
+            rb[i] = bb[i] - db[i] * xb[i];
+        }
+        for (c, &o) in fine.coeffs.iter().zip(&fine.offsets) {
+            let (c_up, x_up) = (&c[p + start..p + end], &x[p + start + o..p + end + o]);
+            let (c_down, x_down) = (
+                &c[p + start - o..p + end - o],
+                &x[p + start - o..p + end - o],
+            );
+            for i in 0..len {
+                rb[i] += c_up[i] * x_up[i] + c_down[i] * x_down[i];
+            }
+        }
+        start = end;
+    }
+}
+
+impl Fine {
+    fn new(stencil: FineStencil, a: &Csr, omega: f64, pt: &Csr) -> Self {
+        let FineStencil {
+            offsets,
+            coeffs,
+            free,
+            n,
+        } = stencil;
+        let pad = offsets.iter().copied().max().unwrap_or(0);
+        let padded = |v: &[f32]| {
+            let mut out = vec![0.0; n + 2 * pad];
+            out[pad..pad + n].copy_from_slice(v);
+            out
+        };
+        let mut diag = vec![1.0; n];
+        let mut smooth = vec![0.0; n];
+        for (f, d) in diagonal(a).into_iter().enumerate() {
+            let i = free[f] as usize;
+            diag[i] = d as f32;
+            smooth[i] = (omega / d) as f32;
+        }
+        let mut pt = pt.clone();
+        for j in &mut pt.idx {
+            *j = free[*j as usize];
+        }
+        pt.cols = n;
+        Self {
+            op: FineOp {
+                coeffs: coeffs.iter().map(|c| padded(c)).collect(),
+                offsets,
+                pad,
+                diag,
+            },
+            smooth,
+            free,
+            pt,
+            x: core::array::from_fn(|_| vec![0.0; n + 2 * pad]),
+            b: core::array::from_fn(|_| vec![0.0; n]),
+            r: core::array::from_fn(|_| vec![0.0; n]),
+        }
+    }
+
+    /// `r = b − S x`, each coordinate.
+    fn residual(&mut self, simd: Simd) {
+        for c in 0..3 {
+            fine_residual(simd, &self.op, &self.x[c], &self.b[c], &mut self.r[c]);
+        }
+    }
+
+    /// `x += ω D⁻¹ r`, each coordinate.
+    fn jacobi(&mut self) {
+        let p = self.op.pad;
+        for c in 0..3 {
+            let x = &mut self.x[c][p..];
+            for ((x, r), w) in x.iter_mut().zip(&self.r[c]).zip(&self.smooth) {
+                *x += *w * *r;
+            }
+        }
+    }
+
+    /// One V(1,1) cycle with `level` (this matrix's hierarchy level, for
+    /// its prolongation) and the levels below.
+    fn cycle(
+        &mut self,
+        simd: Simd,
+        (level, rest): (&mut Level, &mut [Level]),
+        coarse: &mut Coarse,
+        parallel: bool,
+        zero: bool,
+    ) {
+        let p = self.op.pad;
+        if zero {
+            for c in 0..3 {
+                let x = &mut self.x[c][p..];
+                for ((x, b), w) in x.iter_mut().zip(&self.b[c]).zip(&self.smooth) {
+                    *x = *w * *b;
+                }
+            }
+        } else {
+            self.residual(simd);
+            self.jacobi();
+        }
+        self.residual(simd);
+        let [rx, ry, rz] = &self.r;
+        for (k, bc) in level.bc.iter_mut().enumerate() {
+            let r = self.pt.ptr[k]..self.pt.ptr[k + 1];
+            let mut acc = Vec3A::ZERO;
+            for (&j, &v) in self.pt.idx[r.clone()].iter().zip(&self.pt.val32[r]) {
+                let j = j as usize;
+                acc += v * Vec3A::new(rx[j], ry[j], rz[j]);
+            }
+            *bc = acc;
+        }
+        vcycle(rest, coarse, parallel, &mut level.xc, &level.bc, true);
+        let [x0, x1, x2] = &mut self.x;
+        for (f, &i) in self.free.iter().enumerate() {
+            let r = level.p.ptr[f]..level.p.ptr[f + 1];
+            let mut acc = Vec3A::ZERO;
+            for (&j, &v) in level.p.idx[r.clone()].iter().zip(&level.p.val32[r]) {
+                acc += v * level.xc[j as usize];
+            }
+            let i = p + i as usize;
+            x0[i] += acc.x;
+            x1[i] += acc.y;
+            x2[i] += acc.z;
+        }
+        self.residual(simd);
+        self.jacobi();
+    }
+}
+
 /// The multigrid hierarchy of one matrix (see the [module docs](self)).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Multigrid {
     levels: Vec<Level>,
     coarse: Coarse,
+    /// The finest level's cycle on its stencil, when it has one (and the
+    /// hierarchy has more than the dense level).
+    fine: Option<Fine>,
+    /// The SIMD level of the fine cycle.
+    simd: Simd,
+    /// The solution and right-hand side of [`run`](Self::run) without the
+    /// fine stencil.
+    x: Vec<Vec3A>,
+    b: Vec<Vec3A>,
     /// Split the sparse products over two threads.
     parallel: bool,
 }
@@ -211,7 +422,15 @@ impl Multigrid {
     /// by rows (`ptr`, `idx`, `val`; the full matrix, both triangles). A
     /// coarsest matrix that is not positive definite (only if `S` is not)
     /// is [`SolveError`].
-    pub(super) fn build(ptr: &[usize], idx: &[usize], val: &[f64]) -> Result<Self, SolveError> {
+    ///
+    /// With `fine`, the finest level's cycles run on its stencil
+    /// ([`FineStencil`]).
+    pub(super) fn build(
+        ptr: &[usize],
+        idx: &[usize],
+        val: &[f64],
+        mut fine_stencil: Option<FineStencil>,
+    ) -> Result<Self, SolveError> {
         let mut a = Csr {
             ptr: ptr.to_vec(),
             idx: idx.iter().map(|&j| j as u32).collect(),
@@ -220,6 +439,7 @@ impl Multigrid {
             val32: Vec::new(),
         };
         let mut levels = Vec::new();
+        let mut fine = None;
         while a.rows() > COARSEST {
             let diag = diagonal(&a);
             let (aggregate_of, aggregates) = aggregate(&a, &diag);
@@ -234,6 +454,11 @@ impl Multigrid {
             let omega = 4.0 / (3.0 * lambda);
             let p = prolongation(&a, &diag, &aggregate_of, aggregates, omega);
             let pt = p.transpose();
+            if levels.is_empty()
+                && let Some(stencil) = fine_stencil.take()
+            {
+                fine = Some(Fine::new(stencil, &a, omega, &pt.clone().for_cycles()));
+            }
             let coarse = pt.mul(&a.mul(&p));
             let n = a.rows();
             levels.push(Level {
@@ -265,6 +490,10 @@ impl Multigrid {
                 n: coarse,
                 y: Vec::with_capacity(coarse),
             },
+            x: vec![Vec3A::ZERO; if fine.is_some() { 0 } else { ptr.len() - 1 }],
+            b: vec![Vec3A::ZERO; if fine.is_some() { 0 } else { ptr.len() - 1 }],
+            fine,
+            simd: Simd::Auto.resolve(),
             parallel: false,
         })
     }
@@ -274,9 +503,11 @@ impl Multigrid {
         self.levels.len() + 1
     }
 
-    /// Sets whether the sparse products use two threads.
-    pub(super) fn set_parallel(&mut self, parallel: bool) {
+    /// Sets whether the sparse products use two threads, and the fine
+    /// cycle's SIMD level.
+    pub(super) fn configure(&mut self, parallel: bool, simd: Simd) {
         self.parallel = parallel;
+        self.simd = simd.resolve();
     }
 
     /// `cycles` V-cycles on `S x = b` from zero (`x` is overwritten).
@@ -285,16 +516,65 @@ impl Multigrid {
     /// solves for the correction to its guess from the guess's residual
     /// (computed in `f64`). A guess of size `|x|` would leave an error of
     /// about `ε·|x|`; a correction's is `ε·|δ|`.
+    #[cfg(test)]
     pub(super) fn solve(&mut self, x: &mut [Vec3A], b: &[Vec3A], cycles: u32) {
+        let free = self.fine.as_ref().map(|f| f.free.clone());
+        let vertex = |f: usize| free.as_ref().map_or(f, |free| free[f] as usize);
+        for (f, b) in b.iter().enumerate() {
+            self.set_rhs(f, vertex(f), *b);
+        }
+        self.run(cycles);
+        for (f, x) in x.iter_mut().enumerate() {
+            *x = self.solution(f, vertex(f));
+        }
+    }
+
+    /// Sets the right-hand side of row `f` (vertex `i`, for the fine
+    /// stencil) for [`run`](Self::run).
+    #[inline]
+    pub(super) fn set_rhs(&mut self, f: usize, i: usize, b: Vec3A) {
+        match &mut self.fine {
+            Some(fine) => (fine.b[0][i], fine.b[1][i], fine.b[2][i]) = (b.x, b.y, b.z),
+            None => self.b[f] = b,
+        }
+    }
+
+    /// Row `f`'s (vertex `i`'s) solution after [`run`](Self::run).
+    #[inline]
+    pub(super) fn solution(&self, f: usize, i: usize) -> Vec3A {
+        match &self.fine {
+            Some(fine) => {
+                let i = fine.op.pad + i;
+                Vec3A::new(fine.x[0][i], fine.x[1][i], fine.x[2][i])
+            }
+            None => self.x[f],
+        }
+    }
+
+    /// `cycles` V-cycles from zero on the right-hand side set by
+    /// [`set_rhs`](Self::set_rhs) (see [`solve`](Self::solve)).
+    pub(super) fn run(&mut self, cycles: u32) {
         for c in 0..cycles {
-            vcycle(
-                &mut self.levels,
-                &mut self.coarse,
-                self.parallel,
-                x,
-                b,
-                c == 0,
-            );
+            match &mut self.fine {
+                Some(fine) => {
+                    let (level, rest) = self.levels.split_first_mut().expect("a fine level");
+                    fine.cycle(
+                        self.simd,
+                        (level, rest),
+                        &mut self.coarse,
+                        self.parallel,
+                        c == 0,
+                    );
+                }
+                None => vcycle(
+                    &mut self.levels,
+                    &mut self.coarse,
+                    self.parallel,
+                    &mut self.x,
+                    &self.b,
+                    c == 0,
+                ),
+            }
         }
     }
 }
@@ -606,7 +886,7 @@ mod tests {
         ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
         for (side, k) in [(41, 1e3), (41, 1e8), (101, 1e6)] {
             let (ptr, idx, val) = grid(side, k, 1.0);
-            let mut mg = Multigrid::build(&ptr, &idx, &val).unwrap();
+            let mut mg = Multigrid::build(&ptr, &idx, &val, None).unwrap();
             assert!(mg.depth() >= 3, "{side}: {} levels", mg.depth());
             let m = ptr.len() - 1;
             let b: Vec<Vec3A> = (0..m)
@@ -628,7 +908,7 @@ mod tests {
                 "{side}, k {k}: {errors:?}"
             );
             let mut again = vec![Vec3A::ZERO; m];
-            mg.set_parallel(true);
+            mg.configure(true, Simd::Auto);
             mg.solve(&mut again, &b, 20);
             assert_eq!(again, x, "two threads give the same bits");
         }
@@ -637,7 +917,7 @@ mod tests {
     #[test]
     fn a_small_matrix_is_solved_densely() {
         let (ptr, idx, val) = grid(6, 100.0, 2.0);
-        let mut mg = Multigrid::build(&ptr, &idx, &val).unwrap();
+        let mut mg = Multigrid::build(&ptr, &idx, &val, None).unwrap();
         assert_eq!(mg.depth(), 1);
         let b = vec![Vec3A::new(1.0, -2.0, 3.0); ptr.len() - 1];
         let mut x = vec![Vec3A::ZERO; b.len()];
@@ -651,6 +931,6 @@ mod tests {
         for v in &mut val {
             *v = -*v;
         }
-        assert!(Multigrid::build(&ptr, &idx, &val).is_err());
+        assert!(Multigrid::build(&ptr, &idx, &val, None).is_err());
     }
 }
