@@ -1064,9 +1064,23 @@ impl Method for ProjectiveSolver {
             }
         }
         // Residual: the objective's gradient over free vertices (the
-        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e).
-        let d = &mut ws.d;
-        spring_products(ws.simd, Springs::of(model), &ws.coeffs, x, d);
+        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e). With
+        // the multigrid on a stencil, the spring terms are its iterations'
+        // own: the stencil kernels' sums in `f32`.
+        let stencil = model.topology().stencil();
+        let sums = match stencil.filter(|_| ws.stencil_on && ws.multigrid.is_some()) {
+            Some(stencil) => {
+                ws.stencil.load_springs(stencil, ws.kinds_k, x);
+                ws.sums.resize(n, Vec3A::ZERO);
+                ws.stencil.spring_sums(ws.simd, ws.parallel, &mut ws.sums);
+                true
+            }
+            None => {
+                let d = &mut ws.d;
+                spring_products(ws.simd, Springs::of(model), &ws.coeffs, x, d);
+                false
+            }
+        };
         let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();
@@ -1075,16 +1089,20 @@ impl Method for ProjectiveSolver {
             let mass = f64::from(masses[i]);
             let mut g =
                 mass * inv_h2 * (x[i].as_dvec3() - ws.x_tilde[i].as_dvec3()) - mass * gravity;
-            let (starts, ends) = adjacency.by_side(i);
-            for &e in starts {
-                let s = springs[e as usize];
-                let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                g += ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
-            }
-            for &e in ends {
-                let s = springs[e as usize];
-                let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                g -= ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
+            if sums {
+                g += ws.sums[i].as_dvec3();
+            } else {
+                let (starts, ends) = adjacency.by_side(i);
+                for &e in starts {
+                    let s = springs[e as usize];
+                    let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
+                    g += ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
+                }
+                for &e in ends {
+                    let s = springs[e as usize];
+                    let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
+                    g -= ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
+                }
             }
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {
