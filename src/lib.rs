@@ -86,7 +86,7 @@
 //! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
-//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`) or Anderson-accelerated (`pd-anderson`), factorised once | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
+//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`) or Anderson-accelerated (`pd-anderson`), factorised once (or a multigrid V-cycle per iteration on large cloths: [`GlobalSolve`]) | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search; to 1e-9 (`exact`) or on a budget of 16 iterations to 1e-5 (`newton`) | the reference | [`solver::exact`] |
 //!
 //! **Which preset for what** (from the stability map, the report and the
@@ -98,7 +98,7 @@
 //! | stiffer cloth at interactive cost (`k` up to 1e6 at 30 Hz) | `pd` |
 //! | nearly inextensible cloth, small to mid-size | `pd-anderson` (37 of the map's 40 cells) |
 //! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; 1.7 ms at 21²) |
-//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads |
+//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (multigrid: 9.4 ms at 201²) |
 //! | the reference | `exact` |
 //!
 //! ## Collision
@@ -207,7 +207,7 @@
 //! - The frame: the cloth systems run in [`ClothSchedule`], single-threaded,
 //!   from one exclusive system, and the `PostUpdate` pin-following system
 //!   runs only when a cloth's entity moved; one lab cloth adds its step and
-//!   2–8 µs (by run) to Bevy's frame, under either executor (`docs/perf.md`,
+//!   2–13 µs (by run) to Bevy's frame, under either executor (`docs/perf.md`,
 //!   "The frame").
 //! - `cargo run --release -p bevy_cloth_report -- --perf` writes
 //!   `docs/perf.md`: every method from 21² to 256² vertices, 100 cloths in
@@ -270,8 +270,9 @@
 //!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
 //!             pd:                x = x̃; K times: d_e = L_e(x_a − x_b)/‖x_a − x_b‖ per spring;
 //!                                solve (M/h² + Σk AᵀA) x = M/h² x̃ + Mg + Σk Aᵀd (factor
-//!                                kept; Chebyshev blend, or Anderson extrapolation kept
-//!                                only if Φ drops); v = (x − x₀)/dt
+//!                                kept; from 64², one multigrid V-cycle for the correction
+//!                                from −∇Φ instead; Chebyshev blend, or Anderson extrapolation
+//!                                kept only if Φ drops); v = (x − x₀)/dt
 //!             exact:             x = x̃; Newton on Φ(x) = ‖x − x̃‖²_M/2dt² + E(x) with sparse
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
 //!                                (newton: the same to 1e-5, at most 16 iterations)

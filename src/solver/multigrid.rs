@@ -23,20 +23,27 @@
 //!   [`COARSEST`] unknowns remain, which a dense Cholesky factor solves.
 //!
 //! The cycle is a V(1,1) with damped Jacobi smoothing (weight `ω` as above)
-//! on the three coordinates at once, serial or with each sparse product's
-//! rows split over two threads (the same bits either way: each row is
-//! computed the same). All in `f64`, every operation in a fixed order: run
-//! after run the same bits.
+//! on the three coordinates at once, in `f32` (the caller solves for a
+//! small correction: see [`Multigrid::solve`]); a cycle from zero skips the
+//! finest level's pre-smoothing, so its first residual is the right-hand
+//! side itself. On a grid cloth the finest level runs on the cloth's
+//! stencil ([`FineStencil`]): structure-of-arrays residuals with no
+//! indices, compiled for the baseline, AVX2 and AVX-512 and chosen at run
+//! time; every operation is elementwise in a fixed order, so every level
+//! gives the same bits. The coarser products are serial, or with their rows
+//! split over two threads (each row computed the same: the same bits).
 //!
-//! Hand-written: faer (the crate's sparse library) has no multigrid, and no
-//! maintained Rust crate offers algebraic multigrid for a three-column
-//! right-hand side.
+//! Hand-written rather than a crate: `nalgebra-sparse-linalg` (feature
+//! `amg`) and `scirs2-sparse` have algebraic multigrid, but on their own
+//! matrix types (a second sparse stack beside faer) and for one `f64`
+//! right-hand side at a time, while this solve needs three columns in
+//! `f32` and its finest level on the cloth's stencil. Not benchmarked
+//! against them.
 
 use bevy::math::{DVec3, Vec3A};
 
 use super::SolveError;
 use super::simd::{Simd, at_level};
-use super::supernodal::run_both;
 
 /// The coarsest level is solved densely at or below this many unknowns.
 pub(super) const COARSEST: usize = 32;
@@ -361,7 +368,6 @@ impl Fine {
         simd: Simd,
         (level, rest): (&mut Level, &mut [Level]),
         coarse: &mut Coarse,
-        parallel: bool,
         zero: bool,
     ) {
         let p = self.op.pad;
@@ -395,14 +401,7 @@ impl Fine {
             }
             *bc = acc;
         }
-        vcycle(
-            rest,
-            coarse,
-            parallel,
-            &mut level.xc,
-            &level.bc,
-            (true, false),
-        );
+        vcycle(rest, coarse, &mut level.xc, &level.bc, (true, false));
         let [x0, x1, x2] = &mut self.x;
         for (f, &i) in self.free.iter().enumerate() {
             let r = level.p.ptr[f]..level.p.ptr[f + 1];
@@ -434,8 +433,6 @@ pub(super) struct Multigrid {
     /// fine stencil.
     x: Vec<Vec3A>,
     b: Vec<Vec3A>,
-    /// Split the sparse products over two threads.
-    parallel: bool,
 }
 
 impl Multigrid {
@@ -515,7 +512,6 @@ impl Multigrid {
             b: vec![Vec3A::ZERO; if fine.is_some() { 0 } else { ptr.len() - 1 }],
             fine,
             simd: Simd::Auto.resolve(),
-            parallel: false,
         })
     }
 
@@ -524,10 +520,8 @@ impl Multigrid {
         self.levels.len() + 1
     }
 
-    /// Sets whether the sparse products use two threads, and the fine
-    /// cycle's SIMD level.
-    pub(super) fn configure(&mut self, parallel: bool, simd: Simd) {
-        self.parallel = parallel;
+    /// Sets the fine cycle's SIMD level.
+    pub(super) fn configure(&mut self, simd: Simd) {
         self.simd = simd.resolve();
     }
 
@@ -579,18 +573,11 @@ impl Multigrid {
             match &mut self.fine {
                 Some(fine) => {
                     let (level, rest) = self.levels.split_first_mut().expect("a fine level");
-                    fine.cycle(
-                        self.simd,
-                        (level, rest),
-                        &mut self.coarse,
-                        self.parallel,
-                        c == 0,
-                    );
+                    fine.cycle(self.simd, (level, rest), &mut self.coarse, c == 0);
                 }
                 None => vcycle(
                     &mut self.levels,
                     &mut self.coarse,
-                    self.parallel,
                     &mut self.x,
                     &self.b,
                     (c == 0, true),
@@ -607,7 +594,6 @@ impl Multigrid {
 fn vcycle(
     levels: &mut [Level],
     coarse: &mut Coarse,
-    parallel: bool,
     x: &mut [Vec3A],
     b: &[Vec3A],
     (zero, finest): (bool, bool),
@@ -635,23 +621,23 @@ fn vcycle(
             *x = *w * *b;
         }
     } else {
-        residual(a, x, b, r, parallel);
+        residual(a, x, b, r);
         jacobi(x, r, smooth);
     }
     // Coarse-grid correction.
     if from_b {
-        product(pt, b, bc, parallel);
+        product(pt, b, bc);
     } else {
-        residual(a, x, b, r, parallel);
-        product(pt, r, bc, parallel);
+        residual(a, x, b, r);
+        product(pt, r, bc);
     }
-    vcycle(rest, coarse, parallel, xc, bc, (true, false));
-    product(p, xc, r, parallel);
+    vcycle(rest, coarse, xc, bc, (true, false));
+    product(p, xc, r);
     for (x, c) in x.iter_mut().zip(r.iter()) {
         *x += *c;
     }
     // Post-smoothing.
-    residual(a, x, b, r, parallel);
+    residual(a, x, b, r);
     jacobi(x, r, smooth);
 }
 
@@ -661,29 +647,16 @@ fn jacobi(x: &mut [Vec3A], r: &[Vec3A], smooth: &[f32]) {
     }
 }
 
-/// Below this many rows a product stays on one thread (the hand-off costs
-/// more than half the rows).
-const PARALLEL_ROWS: usize = 4096;
-
-/// `y = a · x`, on two threads if asked and worth it.
-fn product(a: &Csr, x: &[Vec3A], y: &mut [Vec3A], parallel: bool) {
-    let n = a.rows();
-    let pool = bevy::tasks::ComputeTaskPool::try_get().filter(|p| p.thread_num() > 1);
-    match pool.filter(|_| parallel && n >= PARALLEL_ROWS) {
-        Some(pool) => {
-            let half = n / 2;
-            let (lo, hi) = y.split_at_mut(half);
-            run_both(Some(pool), [(0..half, lo), (half..n, hi)], |(rows, y)| {
-                a.apply(rows, x, y);
-            });
-        }
-        None => a.apply(0..n, x, y),
-    }
+/// `y = a · x`. Serial: with its rows split over two threads (a task-pool
+/// scope per product) `pd 10` at 201² took 9.9 ms on 2 threads against
+/// 9.4 ms on one; serial, 9.4 ms on both.
+fn product(a: &Csr, x: &[Vec3A], y: &mut [Vec3A]) {
+    a.apply(0..a.rows(), x, y);
 }
 
 /// `r = b − a · x`.
-fn residual(a: &Csr, x: &[Vec3A], b: &[Vec3A], r: &mut [Vec3A], parallel: bool) {
-    product(a, x, r, parallel);
+fn residual(a: &Csr, x: &[Vec3A], b: &[Vec3A], r: &mut [Vec3A]) {
+    product(a, x, r);
     for (r, b) in r.iter_mut().zip(b) {
         *r = *b - *r;
     }
@@ -782,7 +755,7 @@ fn prolongation(a: &Csr, diag: &[f64], of: &[u32], aggregates: usize, omega: f64
 
 /// Cholesky `A = L Lᵀ` of the row-major `n×n` `a`, `L` written over its
 /// lower triangle. False if `a` is not positive definite.
-fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+pub(super) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -912,8 +885,6 @@ mod tests {
 
     #[test]
     fn v_cycles_converge_at_a_rate_independent_of_stiffness_and_size() {
-        use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
-        ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
         for (side, k) in [(41, 1e3), (41, 1e8), (101, 1e6)] {
             let (ptr, idx, val) = grid(side, k, 1.0);
             let mut mg = Multigrid::build(&ptr, &idx, &val, None).unwrap();
@@ -938,9 +909,70 @@ mod tests {
                 "{side}, k {k}: {errors:?}"
             );
             let mut again = vec![Vec3A::ZERO; m];
-            mg.configure(true, Simd::Auto);
             mg.solve(&mut again, &b, 20);
-            assert_eq!(again, x, "two threads give the same bits");
+            assert_eq!(again, x, "the same bits run after run");
+        }
+    }
+
+    /// [`grid`]'s matrix as a stencil.
+    fn grid_stencil(side: usize, k: f32) -> FineStencil {
+        let n = side * side;
+        let offsets = vec![1, side, side + 1];
+        let coeffs = [(0, 1), (1, 0), (1, 1)]
+            .iter()
+            .map(|&(dr, dc)| {
+                (0..n)
+                    .map(|i| {
+                        let (r, c) = (i / side, i % side);
+                        // Both ends free (row ≥ 1) and inside the grid.
+                        let inside = r + dr < side && c + dc < side && r >= 1;
+                        if inside { k } else { 0.0 }
+                    })
+                    .collect()
+            })
+            .collect();
+        FineStencil {
+            offsets,
+            coeffs,
+            free: (side as u32..n as u32).collect(),
+            n,
+        }
+    }
+
+    #[test]
+    fn the_stencil_finest_level_is_the_matrix_at_every_simd_level() {
+        let (side, k) = (61, 1e5);
+        let (ptr, idx, val) = grid(side, k, 1.0);
+        let m = ptr.len() - 1;
+        let b: Vec<Vec3A> = (0..m)
+            .map(|i| {
+                let t = i as f32;
+                Vec3A::new((0.7 * t).sin(), t.cos(), -1.0) * k as f32
+            })
+            .collect();
+        let exact = reference(&ptr, &idx, &val, &b);
+        let solve = |fine: Option<FineStencil>, simd: Simd| {
+            let mut mg = Multigrid::build(&ptr, &idx, &val, fine).unwrap();
+            mg.configure(simd);
+            let mut x = vec![Vec3A::ZERO; m];
+            mg.solve(&mut x, &b, 8);
+            (x, mg.fine.is_some())
+        };
+        let (general, _) = solve(None, Simd::Auto);
+        let (stencil, used) = solve(Some(grid_stencil(side, k as f32)), Simd::Auto);
+        assert!(used);
+        // The same cycle up to the order of each row's sums.
+        let (e_general, e_stencil) = (
+            relative_error(&general, &exact),
+            relative_error(&stencil, &exact),
+        );
+        assert!(
+            (e_general - e_stencil).abs() < 0.05 * e_general && e_stencil < 1e-2,
+            "{e_general} vs {e_stencil}"
+        );
+        for simd in [Simd::Baseline, Simd::Avx2, Simd::Avx512] {
+            let (at, _) = solve(Some(grid_stencil(side, k as f32)), simd);
+            assert_eq!(at, stencil, "{simd:?}");
         }
     }
 

@@ -43,8 +43,8 @@
 //! iteration's coefficients), so the iteration's fixed point is the same
 //! and the `f32` cycle rounds the small `δ`, not `x`. Each iteration
 //! gains a little less than with the exact solve on stiff cloth, and costs
-//! far less: at 201², 10 iterations take 11 ms where the direct solve's
-//! take 55 ms (`docs/perf.md`).
+//! far less: at 201², 10 iterations take 9.4 ms where the direct solve's
+//! take 53 ms (`docs/perf.md`).
 //!
 //! Every iteration decreases `Φ` (it is block coordinate descent on `x` and
 //! the `d_e`), so the iteration is stable at any stiffness and time step;
@@ -545,23 +545,16 @@ impl ProjectiveWorkspace {
     ) -> Result<(), SolveError> {
         let stencil = model.topology().stencil().filter(|_| self.stencil_on);
         match stencil {
-            // The multigrid solves for the correction from the objective's
-            // gradient: each spring's `k(1 − L/l)d` on the stencil kernels,
-            // summed per vertex.
-            Some(stencil) if self.multigrid.is_some() => {
-                self.stencil.load_springs(stencil, self.kinds_k, x);
-                self.sums.resize(x.len(), Vec3A::ZERO);
-                self.stencil
-                    .spring_sums(self.simd, self.parallel, &mut self.sums);
-                let sums = std::mem::take(&mut self.sums);
-                let solved = self.global(model, x, spheres, Some(&sums));
-                self.sums = sums;
-                solved
-            }
-            // Each spring's `k_e·d_e` on the stencil kernels, summed per
-            // vertex.
+            // On the stencil kernels, summed per vertex: each spring's
+            // `k_e·d_e` for the direct solve's right-hand side, or its
+            // `k(1 − L/l)d` for the objective's gradient, which the
+            // multigrid solves from for the correction.
             Some(stencil) => {
-                self.stencil.load_projection(stencil, self.kinds_k, x);
+                if self.multigrid.is_some() {
+                    self.stencil.load_springs(stencil, self.kinds_k, x);
+                } else {
+                    self.stencil.load_projection(stencil, self.kinds_k, x);
+                }
                 self.sums.resize(x.len(), Vec3A::ZERO);
                 self.stencil
                     .spring_sums(self.simd, self.parallel, &mut self.sums);
@@ -678,8 +671,6 @@ impl ProjectiveWorkspace {
         sums: Option<&[Vec3A]>,
     ) {
         let masses = model.masses();
-        let springs = model.topology().springs();
-        let adjacency = model.topology().adjacency();
         let (inv_h2, gravity) = (self.inv_h2 as f32, self.gravity.as_vec3a());
         for (f, &i) in self.free.iter().enumerate() {
             let i = i as usize;
@@ -689,21 +680,7 @@ impl ProjectiveWorkspace {
             let mut r = mass * (inv_h2 * (self.x_tilde[i] - x[i]) + gravity);
             match sums {
                 Some(sums) => r -= sums[i],
-                None => {
-                    let mut g = DVec3::ZERO;
-                    let (starts, ends) = adjacency.by_side(i);
-                    for &e in starts {
-                        let s = springs[e as usize];
-                        let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                        g += self.k[e as usize] * (dx - self.d[e as usize].as_dvec3());
-                    }
-                    for &e in ends {
-                        let s = springs[e as usize];
-                        let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                        g -= self.k[e as usize] * (dx - self.d[e as usize].as_dvec3());
-                    }
-                    r -= g.as_vec3a();
-                }
+                None => r -= self.spring_gradient(model, x, i).as_vec3a(),
             }
             // A near sphere's `c·p − c·x` is its penalty force; so is a
             // far one's explicit force.
@@ -719,8 +696,22 @@ impl ProjectiveWorkspace {
         let Some((multigrid, cycles)) = &mut self.multigrid else {
             return;
         };
-        multigrid.configure(self.parallel, self.simd);
+        multigrid.configure(self.simd);
         multigrid.run(*cycles);
+    }
+
+    /// Vertex `i`'s spring gradient `Σ ±k_e((x_a − x_b) − d_e)` in `f64`,
+    /// from the projections in `self.d`.
+    fn spring_gradient(&self, model: &ClothModel, x: &[Vec3A], i: usize) -> DVec3 {
+        let springs = model.topology().springs();
+        let (starts, ends) = model.topology().adjacency().by_side(i);
+        let term = |e: u32| {
+            let s = springs[e as usize];
+            let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
+            self.k[e as usize] * (dx - self.d[e as usize].as_dvec3())
+        };
+        starts.iter().map(|&e| term(e)).sum::<DVec3>()
+            - ends.iter().map(|&e| term(e)).sum::<DVec3>()
     }
 
     /// The global step's solution at free vertex `f`, whose iterate was
@@ -1081,7 +1072,6 @@ impl Method for ProjectiveSolver {
                 false
             }
         };
-        let adjacency = model.topology().adjacency();
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();
         for &i in &ws.free {
@@ -1092,17 +1082,7 @@ impl Method for ProjectiveSolver {
             if sums {
                 g += ws.sums[i].as_dvec3();
             } else {
-                let (starts, ends) = adjacency.by_side(i);
-                for &e in starts {
-                    let s = springs[e as usize];
-                    let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                    g += ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
-                }
-                for &e in ends {
-                    let s = springs[e as usize];
-                    let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-                    g -= ws.k[e as usize] * (dx - ws.d[e as usize].as_dvec3());
-                }
+                g += ws.spring_gradient(model, x, i);
             }
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {

@@ -41,26 +41,7 @@ fn assemble(
 
 /// Dense Cholesky: true if the symmetric matrix is positive definite.
 fn positive_definite(a: &[f64], n: usize) -> bool {
-    let mut l = vec![0.0; n * n];
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= l[j * n + k] * l[j * n + k];
-        }
-        if d <= 0.0 {
-            return false;
-        }
-        let d = d.sqrt();
-        l[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= l[i * n + k] * l[j * n + k];
-            }
-            l[i * n + j] = s / d;
-        }
-    }
-    true
+    crate::solver::multigrid::cholesky_in_place(&mut a[..n * n].to_vec(), n)
 }
 
 #[test]
