@@ -43,8 +43,8 @@
 //! iteration's coefficients), so the iteration's fixed point is the same
 //! and the `f32` cycle rounds the small `δ`, not `x`. Each iteration
 //! gains a little less than with the exact solve on stiff cloth, and costs
-//! far less: at 201², 10 iterations take 9.4 ms where the direct solve's
-//! take 53 ms (`docs/perf.md`).
+//! far less: at 201², 10 iterations take 9.5 ms where the direct solve's
+//! take 59 ms (`docs/perf.md`).
 //!
 //! Every iteration decreases `Φ` (it is block coordinate descent on `x` and
 //! the `d_e`), so the iteration is stable at any stiffness and time step;
