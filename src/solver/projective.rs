@@ -1035,6 +1035,9 @@ impl Method for ProjectiveSolver {
             let mut update = 0.0f64;
             for (f, &i) in ws.free.iter().enumerate() {
                 let i = i as usize;
+                // The multigrid's iterate read directly: through
+                // `solution`'s `f64` round trip (the same bits) `pd 10` at
+                // 101² took 2.8 ms instead of 2.3 ms.
                 let x_hat = match &ws.multigrid {
                     Some((multigrid, _)) => x[i] + multigrid.solution(f, i),
                     None => ws.solution(f, x[i]).as_vec3a(),
