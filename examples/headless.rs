@@ -5,7 +5,8 @@
 //! cargo run --release --example headless -- [--scene lab|assignment] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--rho 0.995] [--sphere] \
-//!     [--penalty C] [--exact-k] [--dump positions.csv] [--compute-threads N]
+//!     [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] [--dump positions.csv] \
+//!     [--compute-threads N]
 //! ```
 //!
 //! Methods: the preset names of `bevy_cloth::methods::PRESETS` (`jacobi`,
@@ -36,7 +37,9 @@
 //!
 //! The linearly implicit presets drop the compressive term of each spring
 //! block (keeps `A` positive definite; see `SpringJacobian`); `--exact-k`
-//! gives them the assignment's exact blocks instead. `--dump` writes the final positions as CSV `i,x,y,z`. Bad arguments print
+//! gives them the assignment's exact blocks instead. `--global` chooses
+//! projective dynamics' global solve (`GlobalSolve`): `auto` (the default),
+//! `direct`, or `mg`/`mgN` for one/`N` multigrid V-cycles per iteration. `--dump` writes the final positions as CSV `i,x,y,z`. Bad arguments print
 //! the usage and exit with status 2.
 
 use std::process::ExitCode;
@@ -49,7 +52,8 @@ use bevy_cloth::prelude::*;
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
 [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] [--n N] [--rows R] \
 [--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
-[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--dump FILE.csv] [--compute-threads N]";
+[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] \
+[--dump FILE.csv] [--compute-threads N]";
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scene {
@@ -75,6 +79,7 @@ struct Options {
     sphere: bool,
     penalty: f32,
     exact_k: bool,
+    global: Option<GlobalSolve>,
     dump: Option<String>,
     compute_threads: Option<usize>,
 }
@@ -98,6 +103,7 @@ impl Default for Options {
             sphere: false,
             penalty: 10.0,
             exact_k: false,
+            global: None,
             dump: None,
             compute_threads: None,
         }
@@ -139,6 +145,7 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
             "--sphere" => o.sphere = true,
             "--penalty" => o.penalty = parse(&flag, args.next())?,
             "--exact-k" => o.exact_k = true,
+            "--global" => o.global = Some(parse_global(&parse::<String>(&flag, args.next())?)?),
             "--dump" => o.dump = Some(parse(&flag, args.next())?),
             "--compute-threads" => o.compute_threads = Some(parse(&flag, args.next())?),
             "-h" | "--help" => return Err(String::new()),
@@ -165,8 +172,28 @@ fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String>
             _ => return Err("--exact-k goes with the linearly implicit methods".into()),
         }
     }
+    if let Some(global) = o.global {
+        match &mut o.method {
+            AnyMethod::Projective(p) => p.global = global,
+            _ => return Err("--global goes with the projective methods (pd, pd-anderson)".into()),
+        }
+    }
     o.method.validate().map_err(|e| e.to_string())?;
     Ok(o)
+}
+
+/// `auto`, `direct`, `mg` (one V-cycle) or `mgN` (`N` V-cycles).
+fn parse_global(value: &str) -> Result<GlobalSolve, String> {
+    match value {
+        "auto" => Ok(GlobalSolve::Auto),
+        "direct" => Ok(GlobalSolve::Direct),
+        "mg" => Ok(GlobalSolve::Multigrid { cycles: 1 }),
+        _ => value
+            .strip_prefix("mg")
+            .and_then(|n| n.parse().ok())
+            .map(|cycles| GlobalSolve::Multigrid { cycles })
+            .ok_or_else(|| format!("--global: expected auto, direct, mg or mgN, got '{value}'")),
+    }
 }
 
 /// The scene's cloth, parameters and time step.

@@ -58,12 +58,21 @@ fn parse(mut args: Vec<String>) -> Result<(LabOptions, Option<ScreenshotMode>), 
     Ok((options, screenshot))
 }
 
-/// The lab's cloth at resolution `n`: 10×10 units, pinned at 0 and n − 1.
+/// The lab's cloth at resolution `n`: 10×10 units, pinned at 0 and n − 1,
+/// with the lab's total mass of 441 (1 per vertex at 21²) at every `n`.
+/// With 1 per vertex a 101² sheet is 23× heavier on the same springs: it
+/// stretched to 9.6× its length and the guard stopped it (the exact method
+/// too). Like the headless example and the report, the slider changes the
+/// resolution, not the cloth.
 fn lab_cloth(n: u32) -> Result<ClothModel, ClothBuildError> {
     ClothBuilder::lab_grid(n as usize)
         .with_pins([0, n - 1])
+        .with_total_mass(LAB_MASS)
         .build()
 }
+
+/// The Unity lab's cloth: 21² vertices of mass 1.
+const LAB_MASS: f32 = 441.0;
 
 fn main() -> ExitCode {
     let (options, screenshot) =

@@ -20,7 +20,12 @@
 //!   Jacobi step, `P = (I − ω D⁻¹ S) P₀`, `ω = 4/(3λ)` with `λ` the
 //!   Gershgorin bound on `D⁻¹S`'s spectrum;
 //! - **coarse matrices**: Galerkin, `S_c = Pᵀ S P`, until at most
-//!   [`COARSEST`] unknowns remain, which a dense Cholesky factor solves.
+//!   [`COARSEST`] unknowns remain, or until aggregation stalls (a level
+//!   whose off-diagonal entries are all weak, as when `M/h²` dominates the
+//!   springs: a heavy or soft cloth, or the guard's halved steps);
+//! - **the coarsest level** is solved exactly: by a dense Cholesky factor
+//!   up to [`DENSE_MAX`] unknowns, by faer's sparse Cholesky above (a
+//!   stalled finest level makes the cycle the direct solve).
 //!
 //! The cycle is a V(1,1) with damped Jacobi smoothing (weight `ω` as above)
 //! on the three coordinates at once, in `f32` (the caller solves for a
@@ -30,8 +35,7 @@
 //! stencil ([`FineStencil`]): structure-of-arrays residuals with no
 //! indices, compiled for the baseline, AVX2 and AVX-512 and chosen at run
 //! time; every operation is elementwise in a fixed order, so every level
-//! gives the same bits. The coarser products are serial, or with their rows
-//! split over two threads (each row computed the same: the same bits).
+//! gives the same bits. The coarser products are serial.
 //!
 //! Hand-written rather than a crate: `nalgebra-sparse-linalg` (feature
 //! `amg`) and `scirs2-sparse` have algebraic multigrid, but on their own
@@ -42,11 +46,22 @@
 
 use bevy::math::{DVec3, Vec3A};
 
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+
 use super::SolveError;
+use super::cholesky::SparseCholesky;
 use super::simd::{Simd, at_level};
 
-/// The coarsest level is solved densely at or below this many unknowns.
+/// Coarsening stops at or below this many unknowns.
 pub(super) const COARSEST: usize = 32;
+
+/// A coarsest level of at most this many unknowns is solved by a dense
+/// Cholesky factor, a larger one (left by stalled coarsening) by a sparse
+/// one. A dense factor of the 101² lab sheet's 10199 unknowns, which its
+/// guard's 16 substeps of a heavy sheet (1 per vertex, `k` 8000) left when
+/// the first aggregation stalled, took minutes to build and 800 MB; the
+/// sparse one costs the direct solve.
+pub(super) const DENSE_MAX: usize = 256;
 
 /// Strength of connection: `|s_ij| ≥ θ √(s_ii s_jj)`.
 const THETA: f64 = 0.08;
@@ -169,19 +184,99 @@ struct Level {
     bc: Vec<Vec3A>,
 }
 
-/// The coarsest level: its matrix's dense Cholesky factor.
-#[derive(Clone, Debug, Default)]
+/// The coarsest level: its matrix's Cholesky factor, dense up to
+/// [`DENSE_MAX`] unknowns, sparse above.
+#[derive(Default)]
 struct Coarse {
-    /// `L` (row-major, lower), `n × n`.
+    /// `L` (row-major, lower), `n × n`, when dense.
     l: Vec<f64>,
     n: usize,
-    /// The solve's `f64` scratch.
+    /// The dense solve's `f64` scratch.
     y: Vec<DVec3>,
+    /// The sparse factor, and its right-hand sides (`n×3`, column-major).
+    sparse: Option<SparseCholesky>,
+    xyz: Vec<f64>,
+}
+
+impl std::fmt::Debug for Coarse {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Coarse")
+            .field("n", &self.n)
+            .field("sparse", &self.sparse.is_some())
+            .finish()
+    }
 }
 
 impl Coarse {
-    /// Solves `L Lᵀ x = x` in place (in `f64`).
+    /// The factor of `a` (rows; symmetric, both triangles).
+    fn new(a: &Csr) -> Result<Self, SolveError> {
+        let n = a.rows();
+        if n > DENSE_MAX {
+            // `a` is symmetric: its rows are its columns (sorted for faer,
+            // duplicates summed).
+            let (mut ptr, mut idx, mut val) = (vec![0], Vec::new(), Vec::new());
+            let mut row: Vec<(usize, f64)> = Vec::new();
+            for i in 0..n {
+                let (cols, vals) = a.row(i);
+                row.clear();
+                row.extend(cols.iter().map(|&j| j as usize).zip(vals.iter().copied()));
+                row.sort_by_key(|e| e.0);
+                for &(j, v) in &row {
+                    if idx.len() > *ptr.last().unwrap_or(&0) && idx.last() == Some(&j) {
+                        *val.last_mut().expect("an entry") += v;
+                    } else {
+                        idx.push(j);
+                        val.push(v);
+                    }
+                }
+                ptr.push(idx.len());
+            }
+            let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &ptr, None, &idx);
+            let mut factor = SparseCholesky::default();
+            factor.factorize_llt(SparseColMatRef::new(symbolic, &val), 3)?;
+            return Ok(Self {
+                n,
+                sparse: Some(factor),
+                xyz: vec![0.0; 3 * n],
+                ..Self::default()
+            });
+        }
+        let mut l = vec![0.0; n * n];
+        for i in 0..n {
+            let (cols, vals) = a.row(i);
+            for (&j, &v) in cols.iter().zip(vals) {
+                l[i * n + j as usize] += v;
+            }
+        }
+        if !cholesky_in_place(&mut l, n) {
+            return Err(SolveError::NotPositiveDefinite);
+        }
+        Ok(Self {
+            l,
+            n,
+            y: Vec::with_capacity(n),
+            ..Self::default()
+        })
+    }
+
+    /// Solves `L Lᵀ x = x` in place (in `f64`). A sparse solve that is not
+    /// finite leaves `x` NaN, for the guard to report.
     fn solve(&mut self, x: &mut [Vec3A]) {
+        if let Some(factor) = &mut self.sparse {
+            let n = self.n;
+            for (i, v) in x.iter().enumerate() {
+                let v = v.as_dvec3();
+                (self.xyz[i], self.xyz[n + i], self.xyz[2 * n + i]) = (v.x, v.y, v.z);
+            }
+            if factor.solve_factored_xyz(&mut self.xyz, false).is_err() {
+                x.fill(Vec3A::NAN);
+                return;
+            }
+            for (i, x) in x.iter_mut().enumerate() {
+                *x = DVec3::new(self.xyz[i], self.xyz[n + i], self.xyz[2 * n + i]).as_vec3a();
+            }
+            return;
+        }
         let (l, n, y) = (&self.l, self.n, &mut self.y);
         y.clear();
         y.extend(x.iter().map(|v| v.as_dvec3()));
@@ -407,7 +502,7 @@ impl Fine {
 }
 
 /// The multigrid hierarchy of one matrix (see the [module docs](self)).
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub(super) struct Multigrid {
     levels: Vec<Level>,
     coarse: Coarse,
@@ -477,24 +572,9 @@ impl Multigrid {
             });
             a = coarse;
         }
-        let coarse = a.rows();
-        let mut dense = vec![0.0; coarse * coarse];
-        for i in 0..coarse {
-            let (cols, vals) = a.row(i);
-            for (&j, &v) in cols.iter().zip(vals) {
-                dense[i * coarse + j as usize] += v;
-            }
-        }
-        if !cholesky_in_place(&mut dense, coarse) {
-            return Err(SolveError::NotPositiveDefinite);
-        }
         Ok(Self {
             levels,
-            coarse: Coarse {
-                l: dense,
-                n: coarse,
-                y: Vec::with_capacity(coarse),
-            },
+            coarse: Coarse::new(&a)?,
             x: vec![Vec3A::ZERO; if fine.is_some() { 0 } else { ptr.len() - 1 }],
             b: vec![Vec3A::ZERO; if fine.is_some() { 0 } else { ptr.len() - 1 }],
             fine,
@@ -973,6 +1053,28 @@ mod tests {
         let mut x = vec![Vec3A::ZERO; b.len()];
         mg.solve(&mut x, &b, 1);
         assert!(error(&ptr, &idx, &val, &x, &b) < 1e-4);
+    }
+
+    #[test]
+    fn a_stalled_coarsening_is_solved_by_a_sparse_factor_not_a_dense_one() {
+        // `M/h²` far above the springs (a heavy sheet in the guard's
+        // sixteenth steps): no strong links, so the first aggregation
+        // stalls and the finest level is the coarsest.
+        for (side, k, mass) in [(41, 8000.0, 1e6), (61, 1.0, 100.0)] {
+            let (ptr, idx, val) = grid(side, k, mass);
+            let mut mg = Multigrid::build(&ptr, &idx, &val, None).unwrap();
+            let m = ptr.len() - 1;
+            assert_eq!(mg.depth(), 1, "{side}: stalled at the finest level");
+            assert!(m > DENSE_MAX && mg.coarse.sparse.is_some() && mg.coarse.l.is_empty());
+            let b: Vec<Vec3A> = (0..m)
+                .map(|i| Vec3A::new((i as f32).sin(), 1.0, -2.0) * mass as f32)
+                .collect();
+            let exact = reference(&ptr, &idx, &val, &b);
+            let mut x = vec![Vec3A::ZERO; m];
+            mg.solve(&mut x, &b, 1);
+            // Exact up to `f32`.
+            assert!(relative_error(&x, &exact) < 1e-6, "{side}");
+        }
     }
 
     #[test]
