@@ -10,9 +10,10 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::{Conj, MatMut, Par, Side};
 
-use super::SolveError;
 use super::kernels::parallel_pool;
+use super::lanes::LaneFactor;
 use super::supernodal::{PartScratch, Plan, Structure, solve3};
+use super::{Simd, SolveError};
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
 /// analysis is done once for a sparsity pattern and reused by every
@@ -33,6 +34,11 @@ pub struct SparseCholesky {
     /// and the scratch of each part.
     plan: Option<Plan>,
     scratch: [PartScratch; 3],
+    /// A simplicial factor's layout for
+    /// [`solve_factored_xyz`](Self::solve_factored_xyz)'s 4-lane
+    /// substitutions, made with the symbolic analysis and given the values
+    /// of each numeric factorisation.
+    lanes: Option<LaneFactor>,
     /// Forces a simplicial (`Some(false)`) or supernodal (`Some(true)`)
     /// factor; faer chooses by the factorisation's flop count otherwise.
     supernodal: Option<bool>,
@@ -97,11 +103,15 @@ impl SparseCholesky {
                 sym.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
                 sym.solve_in_place_scratch::<f64>(columns, Par::Seq),
             ])));
-            self.plan = match sym.raw() {
-                SymbolicCholeskyRaw::Supernodal(s) => {
-                    Some(Plan::new(&Structure::of(s), sym.perm().map(|p| p.arrays())))
-                }
-                SymbolicCholeskyRaw::Simplicial(_) => None,
+            (self.plan, self.lanes) = match sym.raw() {
+                SymbolicCholeskyRaw::Supernodal(s) => (
+                    Some(Plan::new(&Structure::of(s), sym.perm().map(|p| p.arrays()))),
+                    None,
+                ),
+                SymbolicCholeskyRaw::Simplicial(s) => (
+                    None,
+                    LaneFactor::new(s.col_ptr(), s.row_idx(), sym.perm().map(|p| p.arrays().0)),
+                ),
             };
             self.symbolic = Some(sym);
             self.columns = columns;
@@ -137,6 +147,9 @@ impl SparseCholesky {
     ) -> Result<(), SolveError> {
         self.analyse(a, 1)?;
         self.factored = false;
+        if let Some(lanes) = &mut self.lanes {
+            lanes.clear();
+        }
         let n = rhs.len();
         let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
             return Err(SolveError::Factorization);
@@ -168,11 +181,7 @@ impl SparseCholesky {
             .map_err(|_| SolveError::Factorization)?
             .solve_in_place_with_conj(Conj::No, rhs_mat, par, MemStack::new(memory));
         }
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(SolveError::Factorization)
-        }
+        finite(rhs)
     }
 
     /// Factorises `A = LLᵀ` and keeps the factor for
@@ -185,6 +194,9 @@ impl SparseCholesky {
         columns: usize,
     ) -> Result<(), SolveError> {
         self.factored = false;
+        if let Some(lanes) = &mut self.lanes {
+            lanes.clear();
+        }
         self.analyse(a, columns)?;
         let (Some(sym), Some(memory)) = (self.symbolic.as_ref(), self.memory.as_mut()) else {
             return Err(SolveError::Factorization);
@@ -199,6 +211,9 @@ impl SparseCholesky {
             Default::default(),
         )
         .map_err(|_| SolveError::NotPositiveDefinite)?;
+        if let Some(lanes) = &mut self.lanes {
+            lanes.fill(&self.factor);
+        }
         self.factored = true;
         Ok(())
     }
@@ -223,11 +238,7 @@ impl SparseCholesky {
             Par::Seq,
             MemStack::new(memory),
         );
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(SolveError::Factorization)
-        }
+        finite(rhs)
     }
 
     /// Solves `A X = rhs` for three right-hand sides (`rhs` column-major,
@@ -235,17 +246,21 @@ impl SparseCholesky {
     /// [`factorize_llt`](Self::factorize_llt): the same result as
     /// [`solve_factored`](Self::solve_factored) with three columns.
     ///
-    /// Hand-written on faer's factor (module `supernodal`): faer's general
-    /// solve runs one small dense product per supernode through its
-    /// matrix-multiply dispatch, which for three columns costs more than the
-    /// arithmetic. With `parallel` and a compute pool of two or more
-    /// threads, two independent subtrees of the elimination tree are solved
-    /// at once, with the same result to the bit (the CHANGELOG has the perf
-    /// page's pd rows before and after).
+    /// Hand-written on faer's factor. A supernodal factor (module
+    /// `supernodal`): faer's general solve runs one small dense product per
+    /// supernode through its matrix-multiply dispatch, which for three
+    /// columns costs more than the arithmetic. With `parallel` and a compute
+    /// pool of two or more threads, two independent subtrees of the
+    /// elimination tree are solved at once, with the same result to the bit
+    /// (the CHANGELOG has the perf page's pd rows before and after). A
+    /// simplicial factor (module `lanes`): the three columns as lanes of
+    /// one vector at `simd`'s level, each factor entry read once (the same
+    /// bits at every level).
     pub fn solve_factored_xyz(
         &mut self,
         rhs: &mut [f64],
         parallel: bool,
+        simd: Simd,
     ) -> Result<(), SolveError> {
         let (Some(sym), true) = (self.symbolic.as_ref(), self.factored) else {
             return Err(SolveError::Factorization);
@@ -255,8 +270,13 @@ impl SparseCholesky {
             return Err(SolveError::Factorization);
         }
         let SymbolicCholeskyRaw::Supernodal(s) = sym.raw() else {
-            // faer's simplicial solve is as fast as a hand-written one.
-            return self.solve_factored(rhs, 3);
+            return match &mut self.lanes {
+                Some(lanes) if lanes.is_filled() => match lanes.solve3(rhs, simd.resolve()) {
+                    true => Ok(()),
+                    false => Err(SolveError::Factorization),
+                },
+                _ => self.solve_factored(rhs, 3),
+            };
         };
         let Some(plan) = self.plan.as_ref() else {
             return Err(SolveError::Factorization);
@@ -272,11 +292,17 @@ impl SparseCholesky {
             &mut self.scratch,
             pool,
         );
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(SolveError::Factorization)
-        }
+        finite(rhs)
+    }
+}
+
+/// A solution is finite, or the factorisation failed.
+fn finite(x: &[f64]) -> Result<(), SolveError> {
+    // Without stopping early, so that it vectorises.
+    if x.iter().fold(true, |finite, v| finite & v.is_finite()) {
+        Ok(())
+    } else {
+        Err(SolveError::Factorization)
     }
 }
 
@@ -346,8 +372,9 @@ mod tests {
                 .collect();
             let (mut expected, mut serial, mut parallel) = (b.clone(), b.clone(), b.clone());
             chol.solve_factored(&mut expected, 3).expect("solved");
-            chol.solve_factored_xyz(&mut serial, false).expect("solved");
-            chol.solve_factored_xyz(&mut parallel, true)
+            chol.solve_factored_xyz(&mut serial, false, Simd::Auto)
+                .expect("solved");
+            chol.solve_factored_xyz(&mut parallel, true, Simd::Auto)
                 .expect("solved");
             assert_eq!(serial, parallel, "{side}²: the same bits on two threads");
             if side == 200 {
@@ -382,15 +409,90 @@ mod tests {
     }
 
     #[test]
+    fn the_lane_solve_is_faers_at_every_simd_level_and_follows_refactorisations() {
+        let side = 21;
+        let n = side * side;
+        let (col_ptr, row_idx, mut values) = grid(side);
+        let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let mut chol = SparseCholesky::forced(false);
+        let b: Vec<f64> = (0..3 * n)
+            .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+            .collect();
+        let mut first_bits = Vec::new();
+        for round in 0..2 {
+            if round == 1 {
+                // New values on the same pattern: a heavier, uneven diagonal.
+                for j in 0..n {
+                    for p in col_ptr[j]..col_ptr[j + 1] {
+                        if row_idx[p] == j {
+                            values[p] += 40.0 * (j % 5) as f64;
+                        }
+                    }
+                }
+            }
+            chol.factorize_llt(SparseColMatRef::new(symbolic, &values), 3)
+                .expect("SPD");
+            assert!(
+                chol.lanes.as_ref().is_some_and(LaneFactor::is_filled),
+                "a simplicial factor is solved in lanes"
+            );
+            let mut expected = b.clone();
+            chol.solve_factored(&mut expected, 3).expect("solved");
+            let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let mut bits: Option<Vec<f64>> = None;
+            for level in Simd::supported() {
+                let mut got = b.clone();
+                chol.solve_factored_xyz(&mut got, false, level)
+                    .expect("solved");
+                for (e, g) in expected.iter().zip(&got) {
+                    assert!((e - g).abs() <= 1e-12 * scale, "{level:?}: {e} vs {g}");
+                }
+                match &bits {
+                    Some(bits) => assert_eq!(bits, &got, "{level:?}: the same bits"),
+                    None => bits = Some(got),
+                }
+            }
+            let bits = bits.expect("the baseline level runs");
+            if round == 0 {
+                first_bits = bits;
+            } else {
+                assert_ne!(first_bits, bits, "the refactorised values are used");
+            }
+        }
+        // A failed factorisation leaves no stale values to solve with.
+        let mut indefinite = values.clone();
+        for v in &mut indefinite {
+            *v = -*v;
+        }
+        assert!(
+            chol.factorize_llt(SparseColMatRef::new(symbolic, &indefinite), 3)
+                .is_err()
+        );
+        assert!(
+            chol.solve_factored_xyz(&mut b.clone(), false, Simd::Auto)
+                .is_err()
+        );
+    }
+
+    #[test]
     fn the_three_column_solve_needs_a_factor_of_the_right_size() {
         let mut chol = SparseCholesky::default();
-        assert!(chol.solve_factored_xyz(&mut [0.0; 3], false).is_err());
+        assert!(
+            chol.solve_factored_xyz(&mut [0.0; 3], false, Simd::Auto)
+                .is_err()
+        );
         let (col_ptr, row_idx, values) = grid(3);
         let symbolic = SymbolicSparseColMatRef::new_checked(9, 9, &col_ptr, None, &row_idx);
         let mut chol = SparseCholesky::forced(true);
         chol.factorize_llt(SparseColMatRef::new(symbolic, &values), 3)
             .expect("SPD");
-        assert!(chol.solve_factored_xyz(&mut [0.0; 12], false).is_err());
-        assert!(chol.solve_factored_xyz(&mut [0.0; 27], false).is_ok());
+        assert!(
+            chol.solve_factored_xyz(&mut [0.0; 12], false, Simd::Auto)
+                .is_err()
+        );
+        assert!(
+            chol.solve_factored_xyz(&mut [0.0; 27], false, Simd::Auto)
+                .is_ok()
+        );
     }
 }

@@ -38,6 +38,7 @@ pub mod exact;
 pub mod guard;
 pub mod implicit;
 pub mod kernels;
+mod lanes;
 pub mod linear;
 pub mod measures;
 pub mod method;

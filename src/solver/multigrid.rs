@@ -268,7 +268,10 @@ impl Coarse {
                 let v = v.as_dvec3();
                 (self.xyz[i], self.xyz[n + i], self.xyz[2 * n + i]) = (v.x, v.y, v.z);
             }
-            if factor.solve_factored_xyz(&mut self.xyz, false).is_err() {
+            if factor
+                .solve_factored_xyz(&mut self.xyz, false, Simd::Auto)
+                .is_err()
+            {
                 x.fill(Vec3A::NAN);
                 return;
             }

@@ -26,9 +26,12 @@
 //! (faer's sparse Cholesky, AMD ordering, symbolic analysis kept) and only
 //! refactorised when one of them changes; each iteration is one forward and
 //! one back substitution with the three coordinates as an `n×3` block
-//! (hand-written for three columns on the supernodal factor, and on two
-//! threads split along the elimination tree:
-//! [`SparseCholesky::solve_factored_xyz`](super::cholesky::SparseCholesky::solve_factored_xyz)).
+//! (hand-written for three columns:
+//! [`SparseCholesky::solve_factored_xyz`](super::cholesky::SparseCholesky::solve_factored_xyz);
+//! on faer's simplicial factor, which it picks for small cloths, the
+//! coordinates are lanes of one vector and the rows and columns are taken
+//! by level of the elimination tree; on the supernodal one, the solve is
+//! split over two threads along the elimination tree).
 //! Pinned vertices carry no unknowns: their positions enter the right-hand
 //! side, so pins that follow their entity need no refactorisation.
 //!
@@ -294,6 +297,9 @@ pub struct ProjectiveWorkspace {
     x_tilde: Vec<Vec3A>,
     /// The iterate before last, for Chebyshev.
     x_prev: Vec<Vec3A>,
+    /// Each spring between a free and a pinned vertex, in spring order: the
+    /// free index, the pinned vertex and `k`.
+    pin_links: Vec<(u32, u32, f64)>,
     /// `M/h² x̃ + M g` and the pinned neighbours' `k x_p`, per free vertex.
     base: Vec<DVec3>,
     /// The `n×3` right-hand side / solution, column-major.
@@ -395,6 +401,15 @@ impl ProjectiveWorkspace {
         self.coeffs.clear();
         self.coeffs
             .extend(springs.iter().map(|s| [0.0, -s.rest_length]));
+        self.pin_links.clear();
+        for (s, &k) in springs.iter().zip(&self.k) {
+            let (a, b) = (self.dof_of[s.a as usize], self.dof_of[s.b as usize]);
+            match (a == PINNED, b == PINNED) {
+                (false, true) => self.pin_links.push((a, s.b, k)),
+                (true, false) => self.pin_links.push((b, s.a, k)),
+                _ => {}
+            }
+        }
         // Columns of S: the diagonal and one entry per free neighbour,
         // gathered per free vertex over its springs (duplicates summed).
         let inv_h2 = 1.0 / (params.dt * params.dt);
@@ -647,10 +662,11 @@ impl ProjectiveWorkspace {
             self.rhs[2 * m + f] = acc.z;
         }
         // x, y and z in one call: it traverses the factor once (serially
-        // three single-column solves were 2× slower at 21²–101²). On two
-        // threads x and y go to one and z to the other.
+        // three single-column solves were 2× slower at 21²–101²). (Written
+        // straight into the simplicial factor's lanes instead, saving its
+        // two copies, the step was no faster at 21².)
         self.cholesky
-            .solve_factored_xyz(&mut self.rhs, self.parallel)
+            .solve_factored_xyz(&mut self.rhs, self.parallel, self.simd)
     }
 }
 
@@ -993,17 +1009,9 @@ impl Method for ProjectiveSolver {
         ws.place_contacts(x, v, h as f32, spheres)?;
         // Pinned neighbours: their k·x_p is constant over the step (the
         // direct solve's right-hand side; the multigrid's is a gradient).
-        for (e, s) in springs
-            .iter()
-            .enumerate()
-            .filter(|_| ws.multigrid.is_none())
-        {
-            let (a, b) = (ws.dof_of[s.a as usize], ws.dof_of[s.b as usize]);
-            let k = ws.k[e];
-            match (a == PINNED, b == PINNED) {
-                (false, true) => ws.base[a as usize] += k * x[s.b as usize].as_dvec3(),
-                (true, false) => ws.base[b as usize] += k * x[s.a as usize].as_dvec3(),
-                _ => {}
+        if ws.multigrid.is_none() {
+            for &(f, p, k) in &ws.pin_links {
+                ws.base[f as usize] += k * x[p as usize].as_dvec3();
             }
         }
         let chebyshev = self.chebyshev;
@@ -1058,11 +1066,13 @@ impl Method for ProjectiveSolver {
             }
         }
         // Residual: the objective's gradient over free vertices (the
-        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e). With
-        // the multigrid on a stencil, the spring terms are its iterations'
-        // own: the stencil kernels' sums in `f32`.
+        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e). On a
+        // stencil, the spring terms are the stencil kernels' sums in `f32`
+        // (the multigrid's iterations' own; for the direct solve, a spring
+        // pass in `f64` over the general kernels took about 5 µs of pd's
+        // 130 at 21²).
         let stencil = model.topology().stencil();
-        let sums = match stencil.filter(|_| ws.stencil_on && ws.multigrid.is_some()) {
+        let sums = match stencil.filter(|_| ws.stencil_on) {
             Some(stencil) => {
                 ws.stencil.load_springs(stencil, ws.kinds_k, x);
                 ws.sums.resize(n, Vec3A::ZERO);
