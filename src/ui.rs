@@ -21,7 +21,9 @@ use crate::methods::{AnyMethod, AnyMethodData, PRESETS};
 use crate::model::{ClothBuildError, ClothModel};
 use crate::solver::implicit::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
-use crate::solver::projective::PD_ANDERSON_WINDOW;
+use crate::solver::projective::{
+    GlobalSolve, MULTIGRID_CYCLES, MULTIGRID_FROM, PD_ANDERSON_WINDOW,
+};
 
 /// The inspector panel and its keyboard shortcuts.
 #[derive(Debug, Clone, Copy)]
@@ -408,6 +410,7 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
             } else {
                 chebyshev_ui(ui, &mut p.chebyshev);
             }
+            global_solve_ui(ui, &mut p.global);
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}
@@ -469,6 +472,32 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                     }
                 });
         }
+    }
+}
+
+/// Projective dynamics' global solve: automatic, direct, or multigrid with
+/// its V-cycles per iteration.
+fn global_solve_ui(ui: &mut egui::Ui, global: &mut GlobalSolve) {
+    let name = |g: GlobalSolve| match g {
+        GlobalSolve::Auto => format!("auto (multigrid from {MULTIGRID_FROM} free vertices)"),
+        GlobalSolve::Direct => "direct (sparse Cholesky)".to_owned(),
+        GlobalSolve::Multigrid { .. } => "multigrid".to_owned(),
+    };
+    egui::ComboBox::from_label("global solve")
+        .selected_text(name(*global))
+        .show_ui(ui, |ui| {
+            let multigrid = GlobalSolve::Multigrid {
+                cycles: MULTIGRID_CYCLES,
+            };
+            for g in [GlobalSolve::Auto, GlobalSolve::Direct, multigrid] {
+                let selected = core::mem::discriminant(global) == core::mem::discriminant(&g);
+                if ui.selectable_label(selected, name(g)).clicked() && !selected {
+                    *global = g;
+                }
+            }
+        });
+    if let GlobalSolve::Multigrid { cycles } = global {
+        ui.add(egui::Slider::new(cycles, 1..=8).text("V-cycles per iteration"));
     }
 }
 

@@ -95,7 +95,8 @@ use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 
 /// The interactive iteration count of projective dynamics: each iteration
-/// costs about four of the lab's Jacobi iterations at 21², and 10
+/// costs about ten of the lab's Jacobi iterations at 21² (10 take 133 µs,
+/// 32 Jacobi iterations 37 µs: `docs/perf.md`), and 10
 /// Chebyshev-accelerated ones reach the exact step within about 1e-2 on the
 /// lab's cloth (see the report).
 pub const PD_ITERATIONS: u32 = 10;
@@ -159,9 +160,10 @@ pub enum GlobalSolve {
 }
 
 /// [`GlobalSolve::Auto`] uses multigrid from this many free vertices (64²).
-/// Below, the direct solve is cheap (1.5 ms for 10 iterations at 51²) and
-/// exact: at 21² one V-cycle per iteration would be 1.7× faster (111 µs
-/// against 185 µs) but leave 2 more of the stability map's 40 cells wrong
+/// Below, the direct solve is cheap (0.9 ms for 10 iterations at 51²) and
+/// exact: at 21² one V-cycle per iteration would be 1.4× faster (96 µs
+/// against 133 µs; 1.7× before the direct solve's lanes, `lanes` module)
+/// but leave 2 more of the stability map's 40 cells wrong
 /// (k = 1e5 at dt = 0.1 and 1e6 at 0.0333, 11–12 % short of the exact drop
 /// where the criterion is 10 %).
 pub const MULTIGRID_FROM: usize = 4096;
@@ -1066,13 +1068,16 @@ impl Method for ProjectiveSolver {
             }
         }
         // Residual: the objective's gradient over free vertices (the
-        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e). On a
-        // stencil, the spring terms are the stencil kernels' sums in `f32`
-        // (the multigrid's iterations' own; for the direct solve, a spring
-        // pass in `f64` over the general kernels took about 5 µs of pd's
-        // 130 at 21²).
+        // spring terms k(1 − L/l)(x_a − x_b) = k(x_a − x_b) − k·d_e). With
+        // the multigrid on a stencil, the spring terms are its iterations'
+        // own: the stencil kernels' sums in `f32`. The direct solve's are
+        // summed in `f64`: from the stencil kernels' `f32` sums they would
+        // save about 5 µs of pd's 125 at 21², but at k = 1e8 and
+        // dt = 0.001 their rounding alone put the step's estimated error
+        // above the convergence tolerance (0.251 for 0.25: a false flag on
+        // the stability map).
         let stencil = model.topology().stencil();
-        let sums = match stencil.filter(|_| ws.stencil_on) {
+        let sums = match stencil.filter(|_| ws.stencil_on && ws.multigrid.is_some()) {
             Some(stencil) => {
                 ws.stencil.load_springs(stencil, ws.kinds_k, x);
                 ws.sums.resize(n, Vec3A::ZERO);
