@@ -1,4 +1,5 @@
-//! One step of each pipeline on the lab cloth at 21×21 and 101×101, and of
+//! One step of each pipeline on the lab cloth at 21×21 and 101×101
+//! (projective dynamics at its preset and with its direct solve), and of
 //! the assignment's methods on its cloth at 10×10, 30×30 and 100×100.
 //!
 //! The 101×101 cloth keeps the lab's size (10×10 units) and total mass (441,
@@ -16,6 +17,9 @@ use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
 use bevy_cloth::solver::linear::{LinearImplicitSolver, LinearSolver, LinearWorkspace};
 use bevy_cloth::solver::pbd::{PbdSolver, PbdWorkspace};
+use bevy_cloth::solver::projective::{
+    GlobalSolve, PD_ITERATIONS, ProjectiveSolver, ProjectiveWorkspace,
+};
 use bevy_cloth::solver::symplectic::SymplecticSolver;
 use bevy_cloth::solver::symplectic::SymplecticWorkspace;
 use bevy_cloth::solver::{Method, SpringStiffness, StepParams};
@@ -83,6 +87,25 @@ fn steps(c: &mut Criterion) {
                 black_box(&state);
             })
         });
+        // Projective dynamics at its preset (the direct solve at 21², one
+        // multigrid V-cycle per iteration at 101²), and always direct.
+        for (name, config) in [
+            ("pd10", ProjectiveSolver::chebyshev(PD_ITERATIONS)),
+            (
+                "pd10_direct",
+                ProjectiveSolver::chebyshev(PD_ITERATIONS).with_global(GlobalSolve::Direct),
+            ),
+        ] {
+            let mut ws = ProjectiveWorkspace::default();
+            let mut state = start.clone();
+            group.bench_function(BenchmarkId::new(name, n), |b| {
+                b.iter(|| {
+                    state.copy_from(&start);
+                    Method::step(&config, &model, &mut state, &params, &[], &mut ws).unwrap();
+                    black_box(&state);
+                })
+            });
+        }
         let sphere = [Sphere {
             center: bevy::math::Vec3A::new(0.0, -4.0, 4.0),
             radius: 2.7,
