@@ -16,14 +16,13 @@ use bevy_cloth::collision::{Sphere, project_spheres};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
 use bevy_cloth::solver::linear::{LinearImplicitSolver, LinearSolver, LinearWorkspace};
-use bevy_cloth::solver::pbd::{PbdSolver, PbdWorkspace};
-use bevy_cloth::solver::projective::{
-    GlobalSolve, PD_ITERATIONS, ProjectiveSolver, ProjectiveWorkspace,
-};
+use bevy_cloth::solver::pbd::PbdSolver;
+use bevy_cloth::solver::projective::{GlobalSolve, PD_ITERATIONS, ProjectiveSolver};
 use bevy_cloth::solver::symplectic::SymplecticSolver;
 use bevy_cloth::solver::symplectic::SymplecticWorkspace;
 use bevy_cloth::solver::{Method, SpringStiffness, StepParams};
-use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, BenchmarkId, Criterion, criterion_group, criterion_main};
 
 fn scene(n: usize) -> (ClothModel, StepParams) {
     let model = ClothBuilder::lab_grid(n)
@@ -51,6 +50,29 @@ fn warm(model: &ClothModel, params: &StepParams) -> ClothState {
     state
 }
 
+/// Times one step of `method` from `start` (the state copy included, as
+/// every benchmark here), its workspace kept from step to step.
+fn bench_step<M: Method>(
+    group: &mut BenchmarkGroup<'_, WallTime>,
+    id: BenchmarkId,
+    method: &M,
+    model: &ClothModel,
+    params: &StepParams,
+    start: &ClothState,
+) {
+    let mut ws = M::Workspace::default();
+    let mut state = start.clone();
+    group.bench_function(id, |b| {
+        b.iter(|| {
+            state.copy_from(start);
+            method
+                .step(model, &mut state, params, &[], &mut ws)
+                .unwrap();
+            black_box(&state);
+        })
+    });
+}
+
 fn steps(c: &mut Criterion) {
     let mut group = c.benchmark_group("step");
     for n in [21, 101] {
@@ -60,33 +82,23 @@ fn steps(c: &mut Criterion) {
             ("jacobi32", ImplicitSolver::jacobi(32)),
             ("chebyshev32", ImplicitSolver::chebyshev(32, 0.995)),
         ] {
-            let mut ws = ImplicitWorkspace::default();
-            let mut state = start.clone();
-            group.bench_function(BenchmarkId::new(name, n), |b| {
-                b.iter(|| {
-                    state.copy_from(&start);
-                    Method::step(&config, &model, &mut state, &params, &[], &mut ws).unwrap();
-                    black_box(&state);
-                })
-            });
+            bench_step(
+                &mut group,
+                BenchmarkId::new(name, n),
+                &config,
+                &model,
+                &params,
+                &start,
+            );
         }
-        let mut ws = PbdWorkspace::default();
-        let mut state = start.clone();
-        group.bench_function(BenchmarkId::new("pbd32", n), |b| {
-            b.iter(|| {
-                state.copy_from(&start);
-                Method::step(
-                    &PbdSolver { iterations: 32 },
-                    &model,
-                    &mut state,
-                    &params,
-                    &[],
-                    &mut ws,
-                )
-                .unwrap();
-                black_box(&state);
-            })
-        });
+        bench_step(
+            &mut group,
+            BenchmarkId::new("pbd32", n),
+            &PbdSolver { iterations: 32 },
+            &model,
+            &params,
+            &start,
+        );
         // Projective dynamics at its preset (the direct solve at 21², one
         // multigrid V-cycle per iteration at 101²), and always direct.
         for (name, config) in [
@@ -96,15 +108,14 @@ fn steps(c: &mut Criterion) {
                 ProjectiveSolver::chebyshev(PD_ITERATIONS).with_global(GlobalSolve::Direct),
             ),
         ] {
-            let mut ws = ProjectiveWorkspace::default();
-            let mut state = start.clone();
-            group.bench_function(BenchmarkId::new(name, n), |b| {
-                b.iter(|| {
-                    state.copy_from(&start);
-                    Method::step(&config, &model, &mut state, &params, &[], &mut ws).unwrap();
-                    black_box(&state);
-                })
-            });
+            bench_step(
+                &mut group,
+                BenchmarkId::new(name, n),
+                &config,
+                &model,
+                &params,
+                &start,
+            );
         }
         let sphere = [Sphere {
             center: bevy::math::Vec3A::new(0.0, -4.0, 4.0),

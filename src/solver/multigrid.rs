@@ -212,8 +212,9 @@ impl Coarse {
     fn new(a: &Csr) -> Result<Self, SolveError> {
         let n = a.rows();
         if n > DENSE_MAX {
-            // `a` is symmetric: its rows are its columns (sorted for faer,
-            // duplicates summed).
+            // `a` is symmetric: its rows are its columns, each entry once
+            // (`S` is built so, and Galerkin products sum into one slot per
+            // column), but a product's rows are not sorted, as faer needs.
             let (mut ptr, mut idx, mut val) = (vec![0], Vec::new(), Vec::new());
             let mut row: Vec<(usize, f64)> = Vec::new();
             for i in 0..n {
@@ -221,14 +222,8 @@ impl Coarse {
                 row.clear();
                 row.extend(cols.iter().map(|&j| j as usize).zip(vals.iter().copied()));
                 row.sort_by_key(|e| e.0);
-                for &(j, v) in &row {
-                    if idx.len() > *ptr.last().unwrap_or(&0) && idx.last() == Some(&j) {
-                        *val.last_mut().expect("an entry") += v;
-                    } else {
-                        idx.push(j);
-                        val.push(v);
-                    }
-                }
+                idx.extend(row.iter().map(|e| e.0));
+                val.extend(row.iter().map(|e| e.1));
                 ptr.push(idx.len());
             }
             let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &ptr, None, &idx);
