@@ -241,6 +241,23 @@ impl SparseCholesky {
         finite(rhs)
     }
 
+    /// The simplicial factor's lane layout, holding the values of the last
+    /// successful [`factorize_llt`](Self::factorize_llt), to write a
+    /// three-column right-hand side into and solve in place (module
+    /// `lanes`); `None` for a supernodal factor or none.
+    pub(super) fn lanes(&mut self) -> Option<&mut LaneFactor> {
+        self.lanes
+            .as_mut()
+            .filter(|lanes| self.factored && lanes.is_filled())
+    }
+
+    /// [`lanes`](Self::lanes), to read the solution.
+    pub(super) fn lanes_ref(&self) -> Option<&LaneFactor> {
+        self.lanes
+            .as_ref()
+            .filter(|lanes| self.factored && lanes.is_filled())
+    }
+
     /// Solves `A X = rhs` for three right-hand sides (`rhs` column-major,
     /// `n×3`) with the factor of the last
     /// [`factorize_llt`](Self::factorize_llt): the same result as
@@ -453,6 +470,19 @@ mod tests {
                 }
             }
             let bits = bits.expect("the baseline level runs");
+            // Written in place in the factor's order and read back by
+            // unknown: the same bits as through `rhs`.
+            let lanes = chol.lanes().expect("a filled lane factor");
+            let (order, rhs) = lanes.rhs_mut();
+            for (x, &old) in rhs.iter_mut().zip(order) {
+                let old = old as usize;
+                *x = [b[old], b[n + old], b[2 * n + old], 0.0];
+            }
+            assert!(lanes.solve_in_place(Simd::Auto.resolve()));
+            for j in 0..n {
+                let [x, y, z] = lanes.solution(j);
+                assert_eq!([x, y, z], [bits[j], bits[n + j], bits[2 * n + j]]);
+            }
             if round == 0 {
                 first_bits = bits;
             } else {
@@ -472,6 +502,7 @@ mod tests {
             chol.solve_factored_xyz(&mut b.clone(), false, Simd::Auto)
                 .is_err()
         );
+        assert!(chol.lanes().is_none() && chol.lanes_ref().is_none());
     }
 
     #[test]

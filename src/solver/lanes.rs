@@ -33,8 +33,10 @@ pub(super) type Lanes = [f64; 4];
 /// ([`fill`](Self::fill)).
 #[derive(Debug, Default)]
 pub(super) struct LaneFactor {
-    /// `x[new] = rhs[gather[new]]` (faer's fill-reducing permutation).
+    /// `x[new] = rhs[gather[new]]` (faer's fill-reducing permutation),
+    /// and its inverse: `slot[old] = new`.
     gather: Vec<u32>,
+    slot: Vec<u32>,
     /// Strictly lower `L` by rows (forward) and by columns (back).
     rows: Entries,
     cols: Entries,
@@ -178,8 +180,16 @@ impl LaneFactor {
         if gather.len() != n || gather.iter().any(|&o| o as usize >= n) {
             return None;
         }
+        let mut slot = vec![u32::MAX; n];
+        for (new, &old) in gather.iter().enumerate() {
+            slot[old as usize] = new as u32;
+        }
+        if slot.contains(&u32::MAX) {
+            return None;
+        }
         Some(Self {
             gather,
+            slot,
             rows: Entries::by_level(&rows, &diag),
             cols: Entries::by_level(&cols, &diag),
             x: vec![[0.0; 4]; n],
@@ -222,10 +232,27 @@ impl LaneFactor {
         finite
     }
 
+    /// The right-hand side to write in place, in the factor's order:
+    /// position `new` is unknown `order[new]` (padding lanes zero). Then
+    /// [`solve_in_place`](Self::solve_in_place), and read the solution with
+    /// [`solution`](Self::solution). This saves [`solve3`](Self::solve3)'s
+    /// two permuted copies.
+    pub(super) fn rhs_mut(&mut self) -> (&[u32], &mut [Lanes]) {
+        (&self.gather, &mut self.x)
+    }
+
+    /// Unknown `old`'s three columns after
+    /// [`solve_in_place`](Self::solve_in_place).
+    #[inline]
+    pub(super) fn solution(&self, old: usize) -> [f64; 3] {
+        let x = self.x[self.slot[old] as usize];
+        [x[0], x[1], x[2]]
+    }
+
     /// Solves `L Lᵀ X = B` in place for the right-hand side in `self.x`
     /// (permuted, the padding lanes zero); false if the solution is not
     /// finite.
-    fn solve_in_place(&mut self, level: Simd) -> bool {
+    pub(super) fn solve_in_place(&mut self, level: Simd) -> bool {
         substitute(level, &self.rows, &mut self.x);
         substitute(level, &self.cols, &mut self.x);
         all_finite(&self.x)

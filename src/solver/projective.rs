@@ -87,12 +87,13 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use super::cholesky::SparseCholesky;
 use super::implicit::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::kernels::{Springs, dot, spring_scales};
+use super::lanes::LaneFactor;
 use super::multigrid::{FineStencil, Multigrid};
 use super::simd::{Simd, spring_products};
 use super::stencil::{NONE, StencilWorkspace};
 use super::{ConvergenceSums, Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState};
+use crate::model::{Adjacency, ClothModel, ClothState};
 
 /// The interactive iteration count of projective dynamics: each iteration
 /// costs about ten of the lab's Jacobi iterations at 21² (10 take 133 µs,
@@ -632,43 +633,103 @@ impl ProjectiveWorkspace {
             self.global_multigrid(model, x, spheres, sums);
             return Ok(());
         }
-        let m = self.free.len();
         let adjacency = model.topology().adjacency();
-        for (f, &i) in self.free.iter().enumerate() {
-            let i = i as usize;
-            let mut acc = self.base[f];
-            match sums {
-                Some(sums) => acc += sums[i].as_dvec3(),
-                None => {
-                    let (starts, ends) = adjacency.by_side(i);
-                    for &e in starts {
-                        acc += self.k[e as usize] * self.d[e as usize].as_dvec3();
-                    }
-                    for &e in ends {
-                        acc -= self.k[e as usize] * self.d[e as usize].as_dvec3();
-                    }
-                }
+        let (parallel, simd) = (self.parallel, self.simd);
+        let Self {
+            free,
+            base,
+            k,
+            d,
+            near,
+            cholesky,
+            rhs,
+            ..
+        } = self;
+        let parts = RhsParts {
+            free,
+            base,
+            k,
+            d,
+            near,
+            adjacency,
+            sums,
+            spheres,
+            x,
+        };
+        // A simplicial factor: the right-hand side written straight into
+        // its lanes, in its order, and solved there (`solution` reads it
+        // back); through `rhs` and `solve3`'s two permuted copies, `pd 10`
+        // at 21² took 8 % longer.
+        if let Some(lanes) = cholesky.lanes() {
+            let (order, b) = lanes.rhs_mut();
+            for (b, &f) in b.iter_mut().zip(order) {
+                let acc = parts.at(f as usize);
+                *b = [acc.x, acc.y, acc.z, 0.0];
             }
-            for (s, sphere) in spheres.iter().enumerate() {
-                let near = s < 64 && self.near[f] & (1 << s) != 0;
-                if near {
-                    // c·p, p the vertex projected onto the sphere's outside.
-                    acc += f64::from(sphere.stiffness) * x[i].as_dvec3();
-                }
-                if let Some(contact) = sphere.contact(x[i]) {
-                    acc += contact.force.as_dvec3();
-                }
-            }
-            self.rhs[f] = acc.x;
-            self.rhs[m + f] = acc.y;
-            self.rhs[2 * m + f] = acc.z;
+            return match lanes.solve_in_place(simd.resolve()) {
+                true => Ok(()),
+                false => Err(SolveError::Factorization),
+            };
+        }
+        let m = free.len();
+        for f in 0..m {
+            let acc = parts.at(f);
+            rhs[f] = acc.x;
+            rhs[m + f] = acc.y;
+            rhs[2 * m + f] = acc.z;
         }
         // x, y and z in one call: it traverses the factor once (serially
-        // three single-column solves were 2× slower at 21²–101²). (Written
-        // straight into the simplicial factor's lanes instead, saving its
-        // two copies, the step was no faster at 21².)
-        self.cholesky
-            .solve_factored_xyz(&mut self.rhs, self.parallel, self.simd)
+        // three single-column solves were 2× slower at 21²–101²).
+        cholesky.solve_factored_xyz(rhs, parallel, simd)
+    }
+}
+
+/// What the direct global step's right-hand side at one free vertex is
+/// made of (see [`ProjectiveWorkspace::global`]).
+struct RhsParts<'a> {
+    free: &'a [u32],
+    base: &'a [DVec3],
+    k: &'a [f64],
+    d: &'a [Vec3A],
+    near: &'a [u64],
+    adjacency: &'a Adjacency,
+    sums: Option<&'a [Vec3A]>,
+    spheres: &'a [PenaltySphere],
+    x: &'a [Vec3A],
+}
+
+impl RhsParts<'_> {
+    /// Free vertex `f`'s right-hand side: its `M/h² x̃ + M g`, pinned
+    /// neighbours' and springs' `Σ ±k_e·d_e` and spheres' terms. (Inlined:
+    /// as a call its `DVec3` went through memory, which cost more than the
+    /// sum.)
+    #[inline(always)]
+    fn at(&self, f: usize) -> DVec3 {
+        let i = self.free[f] as usize;
+        let mut acc = self.base[f];
+        match self.sums {
+            Some(sums) => acc += sums[i].as_dvec3(),
+            None => {
+                let (starts, ends) = self.adjacency.by_side(i);
+                for &e in starts {
+                    acc += self.k[e as usize] * self.d[e as usize].as_dvec3();
+                }
+                for &e in ends {
+                    acc -= self.k[e as usize] * self.d[e as usize].as_dvec3();
+                }
+            }
+        }
+        for (s, sphere) in self.spheres.iter().enumerate() {
+            let near = s < 64 && self.near[f] & (1 << s) != 0;
+            if near {
+                // c·p, p the vertex projected onto the sphere's outside.
+                acc += f64::from(sphere.stiffness) * self.x[i].as_dvec3();
+            }
+            if let Some(contact) = sphere.contact(self.x[i]) {
+                acc += contact.force.as_dvec3();
+            }
+        }
+        acc
     }
 }
 
@@ -731,16 +792,63 @@ impl ProjectiveWorkspace {
         starts.iter().map(|&e| term(e)).sum::<DVec3>()
             - ends.iter().map(|&e| term(e)).sum::<DVec3>()
     }
+}
 
-    /// The global step's solution at free vertex `f`, whose iterate was
-    /// `x` (the multigrid's correction is added to it).
-    #[inline]
-    fn solution(&self, f: usize, x: Vec3A) -> DVec3 {
-        if let Some((multigrid, _)) = &self.multigrid {
-            (x + multigrid.solution(f, self.free[f] as usize)).as_dvec3()
-        } else {
-            let m = self.free.len();
-            DVec3::new(self.rhs[f], self.rhs[m + f], self.rhs[2 * m + f])
+/// Where the global step's solution is, read once per iteration (see
+/// [`ProjectiveWorkspace::global`]).
+enum Solved<'a> {
+    /// The multigrid's correction to the iterate.
+    Multigrid(&'a Multigrid),
+    /// The simplicial factor's lanes.
+    Lanes(&'a LaneFactor),
+    /// `rhs`, column-major.
+    Columns(&'a [f64]),
+}
+
+impl<'a> Solved<'a> {
+    /// From the workspace's `multigrid`, `cholesky` and `rhs` (borrowed
+    /// alone, so that the iteration can write the others).
+    fn of(
+        multigrid: &'a Option<(Multigrid, u32)>,
+        cholesky: &'a SparseCholesky,
+        rhs: &'a [f64],
+    ) -> Self {
+        match (multigrid, cholesky.lanes_ref()) {
+            (Some((multigrid, _)), _) => Self::Multigrid(multigrid),
+            (None, Some(lanes)) => Self::Lanes(lanes),
+            (None, None) => Self::Columns(rhs),
+        }
+    }
+
+    /// The solution at free vertex `f` (vertex `i`), whose iterate was
+    /// `x`, in `f32`: the multigrid's correction added to `x`. (Through an
+    /// `f64` round trip, the same bits, `pd 10` at 101² took 2.8 instead
+    /// of 2.3 ms.)
+    #[inline(always)]
+    fn at(&self, f: usize, i: usize, x: Vec3A) -> Vec3A {
+        match self {
+            Self::Multigrid(multigrid) => x + multigrid.solution(f, i),
+            Self::Lanes(lanes) => {
+                let [a, b, c] = lanes.solution(f);
+                Vec3A::new(a as f32, b as f32, c as f32)
+            }
+            Self::Columns(rhs) => {
+                let m = rhs.len() / 3;
+                Vec3A::new(rhs[f] as f32, rhs[m + f] as f32, rhs[2 * m + f] as f32)
+            }
+        }
+    }
+
+    /// [`at`](Self::at) in `f64`.
+    #[inline(always)]
+    fn at_f64(&self, f: usize, i: usize, x: Vec3A) -> DVec3 {
+        match self {
+            Self::Multigrid(multigrid) => (x + multigrid.solution(f, i)).as_dvec3(),
+            Self::Lanes(lanes) => DVec3::from_array(lanes.solution(f)),
+            Self::Columns(rhs) => {
+                let m = rhs.len() / 3;
+                DVec3::new(rhs[f], rhs[m + f], rhs[2 * m + f])
+            }
         }
     }
 }
@@ -828,9 +936,10 @@ impl ProjectiveSolver {
             let mut df = std::mem::take(&mut ws.aa_df[next]);
             dg.resize(3 * m, 0.0);
             df.resize(3 * m, 0.0);
+            let solved = Solved::of(&ws.multigrid, &ws.cholesky, &ws.rhs);
             for (f, &i) in ws.free.iter().enumerate() {
                 let xi = x[i as usize];
-                let gi = ws.solution(f, xi).to_array();
+                let gi = solved.at_f64(f, i as usize, xi).to_array();
                 for (c, &xc) in xi.to_array().iter().enumerate() {
                     let j = c * m + f;
                     let g = gi[c];
@@ -1043,15 +1152,10 @@ impl Method for ProjectiveSolver {
             omega = chebyshev_omega(k, delay, rho, omega);
             let measure = chebyshev == Some(Rho::Auto) && k < delay;
             let mut update = 0.0f64;
+            let solved = Solved::of(&ws.multigrid, &ws.cholesky, &ws.rhs);
             for (f, &i) in ws.free.iter().enumerate() {
                 let i = i as usize;
-                // The multigrid's iterate read directly: through
-                // `solution`'s `f64` round trip (the same bits) `pd 10` at
-                // 101² took 2.8 ms instead of 2.3 ms.
-                let x_hat = match &ws.multigrid {
-                    Some((multigrid, _)) => x[i] + multigrid.solution(f, i),
-                    None => ws.solution(f, x[i]).as_vec3a(),
-                };
+                let x_hat = solved.at(f, i, x[i]);
                 if measure {
                     update += f64::from((x_hat - x[i]).length_squared());
                 }
