@@ -338,6 +338,8 @@ pub struct ProjectiveWorkspace {
     /// The stencil kernels' state, and each vertex's `Σ ±k_e·d_e`.
     stencil: StencilWorkspace,
     sums: Vec<Vec3A>,
+    /// Each vertex's spring gradient in `f64`, for the step's residual.
+    gradient: Vec<DVec3>,
     /// This step's `1/h²` and gravity.
     inv_h2: f64,
     gravity: DVec3,
@@ -1191,33 +1193,43 @@ impl Method for ProjectiveSolver {
             None => {
                 let d = &mut ws.d;
                 spring_products(ws.simd, Springs::of(model), &ws.coeffs, x, d);
+                // Each spring's `k((x_a − x_b) − d_e)` once, added to both
+                // ends (per vertex over its springs instead, each term was
+                // made twice: about 2 µs more at 21²).
+                ws.gradient.clear();
+                ws.gradient.resize(n, DVec3::ZERO);
+                for ((s, &k), d) in springs.iter().zip(&ws.k).zip(&ws.d) {
+                    let (a, b) = (s.a as usize, s.b as usize);
+                    let t = k * ((x[a] - x[b]).as_dvec3() - d.as_dvec3());
+                    ws.gradient[a] += t;
+                    ws.gradient[b] -= t;
+                }
                 false
             }
         };
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();
+        let inv_h = 1.0 / params.dt as f32;
+        let spring_terms: &[_] = if sums { &ws.sums } else { &[] };
         for &i in &ws.free {
             let i = i as usize;
             let mass = f64::from(masses[i]);
-            let mut g =
-                mass * inv_h2 * (x[i].as_dvec3() - ws.x_tilde[i].as_dvec3()) - mass * gravity;
-            if sums {
-                g += ws.sums[i].as_dvec3();
-            } else {
-                g += ws.spring_gradient(model, x, i);
-            }
+            let (xi, x_tilde) = (x[i].as_dvec3(), ws.x_tilde[i].as_dvec3());
+            let mut g = mass * inv_h2 * (xi - x_tilde) - mass * gravity;
+            g += match spring_terms.get(i) {
+                Some(sum) => sum.as_dvec3(),
+                None => ws.gradient[i],
+            };
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {
                     g -= contact.force.as_dvec3();
                 }
             }
             residual += g.length_squared();
-            let motion = x[i].as_dvec3() - (ws.x_tilde[i].as_dvec3() - h * v[i].as_dvec3());
+            let motion = xi - (x_tilde - h * v[i].as_dvec3());
             convergence.add_f64(g * (h * h / mass), motion);
-        }
-        let inv_h = 1.0 / params.dt as f32;
-        for &i in &ws.free {
-            let i = i as usize;
+            // The velocity from the step's motion (after `motion` read the
+            // old one).
             v[i] += (x[i] - ws.x_tilde[i]) * inv_h;
         }
         Ok(StepReport {
