@@ -664,9 +664,26 @@ impl ProjectiveWorkspace {
         // at 21² took 8 % longer.
         if let Some(lanes) = cholesky.lanes() {
             let (order, b) = lanes.rhs_mut();
-            for (b, &f) in b.iter_mut().zip(order) {
-                let acc = parts.at(f as usize);
-                *b = [acc.x, acc.y, acc.z, 0.0];
+            match sums.filter(|_| spheres.is_empty()) {
+                // The common case on its own: `pd 10` at 21² about 3 µs
+                // faster.
+                Some(sums) => {
+                    for (b, &f) in b.iter_mut().zip(order) {
+                        let (base, sum) = (base[f as usize], sums[free[f as usize] as usize]);
+                        *b = [
+                            base.x + f64::from(sum.x),
+                            base.y + f64::from(sum.y),
+                            base.z + f64::from(sum.z),
+                            0.0,
+                        ];
+                    }
+                }
+                None => {
+                    for (b, &f) in b.iter_mut().zip(order) {
+                        let acc = parts.at(f as usize);
+                        *b = [acc.x, acc.y, acc.z, 0.0];
+                    }
+                }
             }
             return match lanes.solve_in_place(simd.resolve()) {
                 true => Ok(()),
