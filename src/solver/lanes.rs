@@ -252,6 +252,16 @@ impl LaneFactor {
         [x[0], x[1], x[2]]
     }
 
+    /// Every unknown (`old`) with its three columns after
+    /// [`solve_in_place`](Self::solve_in_place), in the factor's order.
+    #[inline]
+    pub(super) fn solved(&self) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
+        self.gather
+            .iter()
+            .zip(&self.x)
+            .map(|(&old, x)| (old as usize, [x[0], x[1], x[2]]))
+    }
+
     /// Solves `L Lᵀ X = B` in place for the right-hand side in `self.x`
     /// (permuted, the padding lanes zero); false if the solution is not
     /// finite.
