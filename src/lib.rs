@@ -98,7 +98,7 @@
 //! | stiffer cloth at interactive cost (`k` up to 1e6 at 30 Hz) | `pd` |
 //! | nearly inextensible cloth, small to mid-size | `pd-anderson` (37 of the map's 40 cells) |
 //! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; 1.7 ms at 21²) |
-//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (multigrid: 9.4 ms at 201²) |
+//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (multigrid: 9.3 ms at 201²) |
 //! | the reference | `exact` |
 //!
 //! ## Collision

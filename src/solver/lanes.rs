@@ -8,9 +8,11 @@
 //! ten or more times a step. faer's simplicial solve runs one column after
 //! the other, each entry a scalar product with its index loaded again per
 //! column. At 21² (439 unknowns, 5189 entries below the diagonal) a pd
-//! iteration took 17.5 µs with it and takes 11 with this, about 6.5 of them
+//! iteration took 17.5 µs with it and takes about 8 with this, 5 of them
 //! in the solve (release probes on the perf page's machine; the CHANGELOG
-//! quotes the perf page before and after).
+//! quotes the perf page before and after). Projective dynamics writes its
+//! right-hand side straight into the lanes, in the factor's order
+//! (`LaneFactor::rhs_mut`), and reads the solution there.
 //!
 //! Both substitutions are dot products over gathered entries (no scattered
 //! writes): the forward one over the rows of `L`, the back one over its

@@ -96,7 +96,7 @@ use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState};
 
 /// The interactive iteration count of projective dynamics: each iteration
-/// costs about ten of the lab's Jacobi iterations at 21² (10 take 133 µs,
+/// costs about seven of the lab's Jacobi iterations at 21² (10 take 93 µs,
 /// 32 Jacobi iterations 37 µs: `docs/perf.md`), and 10
 /// Chebyshev-accelerated ones reach the exact step within about 1e-2 on the
 /// lab's cloth (see the report).
@@ -162,9 +162,9 @@ pub enum GlobalSolve {
 
 /// [`GlobalSolve::Auto`] uses multigrid from this many free vertices (64²).
 /// Below, the direct solve is cheap (0.9 ms for 10 iterations at 51²) and
-/// exact: at 21² one V-cycle per iteration would be 1.4× faster (96 µs
-/// against 133 µs; 1.7× before the direct solve's lanes, `lanes` module)
-/// but leave 2 more of the stability map's 40 cells wrong
+/// exact: at 21² one V-cycle per iteration is no faster now (about 91
+/// against 93 µs in release probes; 1.7× faster before the direct solve's
+/// lanes, `lanes` module) and would leave 2 more of the stability map's 40 cells wrong
 /// (k = 1e5 at dt = 0.1 and 1e6 at 0.0333, 11–12 % short of the exact drop
 /// where the criterion is 10 %).
 pub const MULTIGRID_FROM: usize = 4096;
