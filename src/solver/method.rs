@@ -67,7 +67,13 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
 
     /// Advances `state` by one step, with penalty `spheres` acting inside it,
     /// after checking the parameters it uses, the settings and the state's size. On
-    /// error the state is unchanged.
+    /// error the state is unchanged, with one exception: projective dynamics
+    /// factorises (after a sphere's contacts change) and solves in the
+    /// middle of its step, so its [`StepError::Solve`] (a failed
+    /// factorisation or a non-finite solution, which finite input with
+    /// positive masses does not produce) can come after it has moved the
+    /// state; the divergence guard ([`guarded_step`](super::guard::guarded_step))
+    /// restores it then.
     fn step(
         &self,
         model: &ClothModel,
