@@ -80,8 +80,9 @@ struct Entries {
     inv_diag: Vec<f64>,
     diag_src: Vec<u32>,
     /// Per line (position in the order), its entries
-    /// (`ptr[at]..ptr[at + 1]`): the byte offsets in `x` of the unknowns they read,
-    /// their values, and where those are in faer's values. (Stored as runs
+    /// (`ptr[at]..ptr[at + 1]`): the byte offsets in `x` of the unknowns
+    /// they read, their values, and where those are in faer's values.
+    /// (Stored as runs
     /// of consecutive unknowns instead, which saves loading an index per
     /// entry, the solve was slower: 13.1 against 11.8 µs per pd iteration
     /// at 21², where the runs average 3 to 5 entries.)

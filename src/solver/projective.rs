@@ -164,9 +164,9 @@ pub enum GlobalSolve {
 /// Below, the direct solve is cheap (0.9 ms for 10 iterations at 51²) and
 /// exact: at 21² one V-cycle per iteration is no faster now (about 91
 /// against 93 µs in release probes; 1.7× faster before the direct solve's
-/// lanes, `lanes` module) and would leave 2 more of the stability map's 40 cells wrong
-/// (k = 1e5 at dt = 0.1 and 1e6 at 0.0333, 11–12 % short of the exact drop
-/// where the criterion is 10 %).
+/// lanes, `lanes` module) and would leave 2 more of the stability map's 40
+/// cells wrong (k = 1e5 at dt = 0.1 and 1e6 at 0.0333, 11–12 % short of
+/// the exact drop where the criterion is 10 %).
 pub const MULTIGRID_FROM: usize = 4096;
 
 /// [`GlobalSolve::Auto`]'s V-cycles per iteration.
@@ -659,7 +659,7 @@ impl ProjectiveWorkspace {
             x,
         };
         // A simplicial factor: the right-hand side written straight into
-        // its lanes, in its order, and solved there (`solution` reads it
+        // its lanes, in its order, and solved there (`Solved` reads it
         // back); through `rhs` and `solve3`'s two permuted copies, `pd 10`
         // at 21² took 8 % longer.
         if let Some(lanes) = cholesky.lanes() {
