@@ -665,8 +665,9 @@ impl ProjectiveWorkspace {
         if let Some(lanes) = cholesky.lanes() {
             let (order, b) = lanes.rhs_mut();
             match sums.filter(|_| spheres.is_empty()) {
-                // The common case on its own: `pd 10` at 21² about 3 µs
-                // faster.
+                // The common case on its own loop (through `parts.at`, even
+                // with this case first in it, `pd 10` at 21² took 98
+                // instead of 93 µs in release probes).
                 Some(sums) => {
                     for (b, &f) in b.iter_mut().zip(order) {
                         let (base, sum) = (base[f as usize], sums[free[f as usize] as usize]);
@@ -769,6 +770,9 @@ impl ProjectiveWorkspace {
         sums: Option<&[Vec3A]>,
     ) {
         let masses = model.masses();
+        if sums.is_none() {
+            self.spring_gradients(model, x);
+        }
         let (inv_h2, gravity) = (self.inv_h2 as f32, self.gravity.as_vec3a());
         for (f, &i) in self.free.iter().enumerate() {
             let i = i as usize;
@@ -778,7 +782,7 @@ impl ProjectiveWorkspace {
             let mut r = mass * (inv_h2 * (self.x_tilde[i] - x[i]) + gravity);
             match sums {
                 Some(sums) => r -= sums[i],
-                None => r -= self.spring_gradient(model, x, i).as_vec3a(),
+                None => r -= self.gradient[i].as_vec3a(),
             }
             // A near sphere's `c·p − c·x` is its penalty force; so is a
             // far one's explicit force.
@@ -798,18 +802,20 @@ impl ProjectiveWorkspace {
         multigrid.run(*cycles);
     }
 
-    /// Vertex `i`'s spring gradient `Σ ±k_e((x_a − x_b) − d_e)` in `f64`,
-    /// from the projections in `self.d`.
-    fn spring_gradient(&self, model: &ClothModel, x: &[Vec3A], i: usize) -> DVec3 {
+    /// Each vertex's spring gradient `Σ ±k_e((x_a − x_b) − d_e)` in `f64`,
+    /// from the projections in `self.d`, into `self.gradient`: each
+    /// spring's term made once and added to both ends (per vertex over its
+    /// springs, each term was made twice: about 2 µs more at 21²).
+    fn spring_gradients(&mut self, model: &ClothModel, x: &[Vec3A]) {
+        self.gradient.clear();
+        self.gradient.resize(x.len(), DVec3::ZERO);
         let springs = model.topology().springs();
-        let (starts, ends) = model.topology().adjacency().by_side(i);
-        let term = |e: u32| {
-            let s = springs[e as usize];
-            let dx = (x[s.a as usize] - x[s.b as usize]).as_dvec3();
-            self.k[e as usize] * (dx - self.d[e as usize].as_dvec3())
-        };
-        starts.iter().map(|&e| term(e)).sum::<DVec3>()
-            - ends.iter().map(|&e| term(e)).sum::<DVec3>()
+        for ((s, &k), d) in springs.iter().zip(&self.k).zip(&self.d) {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let t = k * ((x[a] - x[b]).as_dvec3() - d.as_dvec3());
+            self.gradient[a] += t;
+            self.gradient[b] -= t;
+        }
     }
 }
 
@@ -1225,7 +1231,7 @@ impl Method for ProjectiveSolver {
         // the multigrid on a stencil, the spring terms are its iterations'
         // own: the stencil kernels' sums in `f32`. The direct solve's are
         // summed in `f64`: from the stencil kernels' `f32` sums they would
-        // save about 5 µs of pd's 125 at 21², but at k = 1e8 and
+        // save a few µs at 21², but at k = 1e8 and
         // dt = 0.001 their rounding alone put the step's estimated error
         // above the convergence tolerance (0.251 for 0.25: a false flag on
         // the stability map).
@@ -1240,32 +1246,22 @@ impl Method for ProjectiveSolver {
             None => {
                 let d = &mut ws.d;
                 spring_products(ws.simd, Springs::of(model), &ws.coeffs, x, d);
-                // Each spring's `k((x_a − x_b) − d_e)` once, added to both
-                // ends (per vertex over its springs instead, each term was
-                // made twice: about 2 µs more at 21²).
-                ws.gradient.clear();
-                ws.gradient.resize(n, DVec3::ZERO);
-                for ((s, &k), d) in springs.iter().zip(&ws.k).zip(&ws.d) {
-                    let (a, b) = (s.a as usize, s.b as usize);
-                    let t = k * ((x[a] - x[b]).as_dvec3() - d.as_dvec3());
-                    ws.gradient[a] += t;
-                    ws.gradient[b] -= t;
-                }
+                ws.spring_gradients(model, x);
                 false
             }
         };
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();
         let inv_h = 1.0 / params.dt as f32;
-        let spring_terms: &[_] = if sums { &ws.sums } else { &[] };
         for &i in &ws.free {
             let i = i as usize;
             let mass = f64::from(masses[i]);
             let (xi, x_tilde) = (x[i].as_dvec3(), ws.x_tilde[i].as_dvec3());
             let mut g = mass * inv_h2 * (xi - x_tilde) - mass * gravity;
-            g += match spring_terms.get(i) {
-                Some(sum) => sum.as_dvec3(),
-                None => ws.gradient[i],
+            g += if sums {
+                ws.sums[i].as_dvec3()
+            } else {
+                ws.gradient[i]
             };
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {
