@@ -39,9 +39,7 @@ use crate::solver::exact::ExactSolver;
 use crate::solver::implicit::ImplicitSolver;
 use crate::solver::linear::{CgConfig, LinearImplicitSolver, SpringJacobian};
 use crate::solver::pbd::PbdSolver;
-use crate::solver::projective::{
-    PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW, PD_ITERATIONS, ProjectiveSolver,
-};
+use crate::solver::projective::{PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW, ProjectiveSolver};
 use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{
     LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
@@ -233,7 +231,7 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         label: "Projective dynamics (Chebyshev)",
-        method: AnyMethod::Projective(ProjectiveSolver::chebyshev(PD_ITERATIONS)),
+        method: AnyMethod::Projective(ProjectiveSolver::PRESET),
     },
     Preset {
         label: "Projective dynamics (Anderson, stiff cloth)",

@@ -22,7 +22,7 @@ use crate::model::{ClothBuildError, ClothModel};
 use crate::solver::implicit::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
 use crate::solver::projective::{
-    GlobalSolve, MULTIGRID_CYCLES, MULTIGRID_FROM, PD_ANDERSON_WINDOW,
+    GlobalSolve, MULTIGRID_CYCLES, MULTIGRID_FROM, PD_ANDERSON_WINDOW, PD_TOLERANCE,
 };
 
 /// The inspector panel and its keyboard shortcuts.
@@ -402,13 +402,15 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                 .changed()
             {
                 p.anderson = if anderson { PD_ANDERSON_WINDOW } else { 0 };
-                // One acceleration at a time.
+                // One acceleration at a time; Anderson has no early stop.
                 p.chebyshev = if anderson { None } else { Some(Rho::Auto) };
+                p.tolerance = if anderson { 0.0 } else { PD_TOLERANCE };
             }
             if p.anderson > 0 {
                 ui.add(egui::Slider::new(&mut p.anderson, 1..=16).text("Anderson window"));
             } else {
                 chebyshev_ui(ui, &mut p.chebyshev);
+                early_stop_ui(ui, &mut p.tolerance);
             }
             global_solve_ui(ui, &mut p.global);
         }
@@ -471,6 +473,26 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                         ui.selectable_value(&mut l.penalty, p, format!("{p:?}"));
                     }
                 });
+        }
+    }
+}
+
+/// Projective dynamics' early stop: on or off, and its tolerance.
+fn early_stop_ui(ui: &mut egui::Ui, tolerance: &mut f64) {
+    let mut on = *tolerance > 0.0;
+    if ui
+        .checkbox(&mut on, "stop early (estimated error per motion)")
+        .changed()
+    {
+        *tolerance = if on { PD_TOLERANCE } else { 0.0 };
+    }
+    if on {
+        let mut exponent = tolerance.log10();
+        if ui
+            .add(egui::Slider::new(&mut exponent, -4.0..=-1.0).text("tolerance (log10)"))
+            .changed()
+        {
+            *tolerance = 10f64.powf(exponent);
         }
     }
 }

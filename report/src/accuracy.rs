@@ -170,8 +170,8 @@ impl ReportConfig {
     }
 }
 
-/// The report's setting of a method at `k` iterations: CG runs exactly `k`
-/// iterations (tolerance 0), Newton at most `k`.
+/// The report's setting of a method at `k` iterations: CG and projective
+/// dynamics run exactly `k` iterations (tolerance 0), Newton at most `k`.
 fn at_iterations(method: AnyMethod, k: u32) -> AnyMethod {
     match method.with_iterations(k) {
         AnyMethod::Linear(mut linear) => {
@@ -180,6 +180,7 @@ fn at_iterations(method: AnyMethod, k: u32) -> AnyMethod {
             }
             AnyMethod::Linear(linear)
         }
+        AnyMethod::Projective(pd) => AnyMethod::Projective(pd.with_tolerance(0.0)),
         other => other,
     }
 }

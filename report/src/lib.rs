@@ -36,6 +36,10 @@ pub fn label(method: &AnyMethod) -> String {
     match (method, method.iterations()) {
         // Newton's count is a cap, not the work done: the name alone.
         (AnyMethod::Exact(_), _) | (_, None) => variant(method),
+        // Projective dynamics with an early stop: its count is a budget.
+        (AnyMethod::Projective(pd), Some(k)) if pd.tolerance > 0.0 => {
+            format!("{} ≤{k}", variant(method))
+        }
         (_, Some(k)) => format!("{} {k}", variant(method)),
     }
 }

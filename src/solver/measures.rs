@@ -89,6 +89,16 @@ impl ConvergenceSums {
         self.count += 1;
     }
 
+    /// From sums made elsewhere: the squared errors and motions of `count`
+    /// free vertices.
+    pub(crate) fn from_parts(error: f64, motion: f64, count: usize) -> Self {
+        Self {
+            error,
+            motion,
+            count,
+        }
+    }
+
     /// The relative error of a step of `dt` seconds of `model` (0 for a
     /// cloth without free vertices).
     pub fn relative_error(&self, model: &ClothModel, dt: f64) -> f32 {

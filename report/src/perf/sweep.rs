@@ -57,15 +57,16 @@ pub fn sweep_methods() -> Vec<(String, AnyMethod, bool)> {
         })
         .collect();
     // `pd` with its global solve always direct: what the automatic choice
-    // of multigrid on large cloths is measured against.
-    let direct = AnyMethod::Projective(
-        ProjectiveSolver::chebyshev(PD_ITERATIONS).with_global(GlobalSolve::Direct),
-    );
+    // of multigrid on large cloths is measured against; and `pd` running
+    // its whole budget, without the early stop.
+    let direct = AnyMethod::Projective(ProjectiveSolver::PRESET.with_global(GlobalSolve::Direct));
+    let budget = AnyMethod::Projective(ProjectiveSolver::chebyshev(PD_ITERATIONS));
     let at = methods
         .iter()
         .position(|(_, m, _)| matches!(m, AnyMethod::Projective(_)))
         .map_or(methods.len(), |p| p + 1);
     methods.insert(at, (crate::label(&direct), direct, false));
+    methods.insert(at + 1, (crate::label(&budget), budget, false));
     methods
 }
 
