@@ -86,7 +86,7 @@
 //! | [`PbdSolver`] / [`PbdPlugin`] | position-based dynamics, Jacobi strain limiting | lab part 2 | [`solver::pbd`] |
 //! | [`SymplecticSolver`] / [`SymplecticPlugin`] | symplectic Euler (`A = M`) | assignment | [`solver::symplectic`] |
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
-//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`) or Anderson-accelerated (`pd-anderson`), factorised once (or a multigrid V-cycle per iteration on large cloths: [`GlobalSolve`]) | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
+//! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`: at most 10 iterations, stopping early once its estimated error is 1 % of the step's motion) or Anderson-accelerated (`pd-anderson`), factorised once (or a multigrid V-cycle per iteration on large cloths: [`GlobalSolve`]) | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search; to 1e-9 (`exact`) or on a budget of 16 iterations to 1e-5 (`newton`) | the reference | [`solver::exact`] |
 //!
 //! **Which preset for what** (from the stability map, the report and the
@@ -268,7 +268,9 @@
 //!             symplectic:        v ← damping·v + h·M⁻¹f(x); x ← x + h·v
 //!             linear implicit:   fill A = M − h²K, b = M·damping·v + h·f (pattern reused)
 //!                                solve A·v⁺ = b (CG warm-started, or LDLᵀ); x ← x + h·v⁺
-//!             pd:                x = x̃; K times: d_e = L_e(x_a − x_b)/‖x_a − x_b‖ per spring;
+//!             pd:                x = x̃; up to K times: d_e = L_e(x_a − x_b)/‖x_a − x_b‖ per spring;
+//!                                stop if the estimated error (dt²/m·∇Φ, from the right-hand
+//!                                sides) is within the tolerance (preset: 1 % of the motion);
 //!                                solve (M/h² + Σk AᵀA) x = M/h² x̃ + Mg + Σk Aᵀd (factor
 //!                                kept; from 64², one multigrid V-cycle for the correction
 //!                                from −∇Φ instead; Chebyshev blend, or Anderson extrapolation
