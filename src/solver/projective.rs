@@ -111,8 +111,8 @@ use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState};
 
 /// The interactive iteration budget of projective dynamics: each iteration
-/// costs about seven of the lab's Jacobi iterations at 21² (10 take 93 µs,
-/// 32 Jacobi iterations 37 µs: `docs/perf.md`), and 10
+/// costs about seven of the lab's Jacobi iterations at 21² (10 take 92 µs,
+/// 32 Jacobi iterations 37.5 µs: `docs/perf.md`), and 10
 /// Chebyshev-accelerated ones reach the exact step within about 1e-2 on the
 /// lab's cloth (see the report). The preset stops before it at
 /// [`PD_TOLERANCE`].
@@ -121,9 +121,12 @@ pub const PD_ITERATIONS: u32 = 10;
 /// The preset's early stop ([`ProjectiveSolver::tolerance`]): an estimated
 /// error of 1 % of the step's motion, the per-step error the budget of
 /// [`PD_ITERATIONS`] aims at. On the perf page's swinging 21² cloth it
-/// stops after 5 iterations (estimate 0.0096; 0.0033 after all 10); where
-/// the cloth is stiff for its step the estimate stays above it and the
-/// whole budget runs.
+/// stops after 5 iterations (estimate 0.0096; 0.0033 after all 10), in
+/// 64 µs instead of 92; where the cloth is stiff for its step, and on that
+/// cloth from 101² (one multigrid V-cycle per iteration), the estimate
+/// stays above it and the whole budget runs, the estimate costing about
+/// 3 % more. The stability map's verdicts and flags are those of the
+/// whole budget.
 pub const PD_TOLERANCE: f64 = 1e-2;
 
 /// The stiff-cloth setting of projective dynamics: 20 Anderson-accelerated
