@@ -1606,6 +1606,17 @@ mod tests {
         state
     }
 
+    /// The report's sphere scene's sphere: the lab's, as a penalty sphere
+    /// stiffer than the cloth's inertia (c = 1e4 against m/h² ≈ 900).
+    fn lab_penalty_sphere() -> PenaltySphere {
+        PenaltySphere {
+            center: Vec3A::new(0.0, -4.0, 4.0),
+            radius: 2.7,
+            stiffness: 1e4,
+            surface: Default::default(),
+        }
+    }
+
     fn error_against_exact(
         model: &ClothModel,
         params: &StepParams,
@@ -1652,12 +1663,7 @@ mod tests {
         // made it worse; as a projective term, it converges.
         let model = ClothBuilder::lab().with_total_mass(441.0).build().unwrap();
         let params = StepParams::LAB;
-        let spheres = [PenaltySphere {
-            center: Vec3A::new(0.0, -4.0, 4.0),
-            radius: 2.7,
-            stiffness: 1e4,
-            surface: Default::default(),
-        }];
+        let spheres = [lab_penalty_sphere()];
         let start = swinging_onto(&model, &params, &spheres, 20);
         let touching = start
             .positions
@@ -2068,12 +2074,7 @@ mod tests {
         let lab = lab();
         let big = ClothBuilder::lab_grid(201).build().unwrap();
         let params = StepParams::LAB;
-        let sphere = [PenaltySphere {
-            center: Vec3A::new(0.0, -4.0, 4.0),
-            radius: 2.7,
-            stiffness: 1e4,
-            surface: Default::default(),
-        }];
+        let sphere = [lab_penalty_sphere()];
         let mg = GlobalSolve::Multigrid { cycles: 1 };
         const TIGHT: f64 = 5e-5;
         let cases: [(&ClothModel, &[PenaltySphere], GlobalSolve, f64); 4] = [
