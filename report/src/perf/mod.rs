@@ -32,8 +32,8 @@ mod sweep;
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
 pub use sweep::{
-    Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, cg_parts, frame_costs, many_cloths,
-    scale_model, simd_levels, sweep, sweep_methods, warm_state,
+    Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, SphereRow, cg_parts, frame_costs,
+    many_cloths, scale_model, simd_levels, sphere_steps, sweep, sweep_methods, warm_state,
 };
 
 use std::path::PathBuf;
@@ -56,6 +56,8 @@ pub struct PerfConfig {
     pub many: usize,
     /// Side of the CG comparison cloth (the assignment's).
     pub cg_side: usize,
+    /// Sides at which `pd` is timed falling onto a penalty sphere.
+    pub sphere_sides: Vec<usize>,
     /// Elements per array of the memory-bandwidth kernel.
     pub stream_len: usize,
     /// A table from `compare/silk` to include, if the file exists.
@@ -78,6 +80,7 @@ impl PerfConfig {
             min_samples: 7,
             many: 100,
             cg_side: 100,
+            sphere_sides: vec![101, 201],
             stream_len: 1 << 24,
             only: None,
         }
@@ -93,6 +96,7 @@ impl PerfConfig {
             min_samples: 3,
             many: 3,
             cg_side: 6,
+            sphere_sides: vec![11],
             stream_len: 1 << 12,
             silk_table: None,
             only: None,
@@ -186,6 +190,7 @@ mod tests {
         let md = run(&PerfConfig::tiny(&dir), |_| {}).unwrap();
         for heading in [
             "## Time per step",
+            "## Projective dynamics onto a penalty sphere",
             "## Many cloths",
             "## The frame",
             "## Sparse CG",

@@ -4,9 +4,10 @@
 use std::time::{Duration, Instant};
 
 use bevy::app::App;
-use bevy::math::Affine3A;
+use bevy::math::{Affine3A, Vec3A};
 use bevy::prelude::{Fixed, MinimalPlugins, Time, Transform, Virtual};
 use bevy::time::TimeUpdateStrategy;
+use bevy_cloth::collision::PenaltySphere;
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::Method;
@@ -15,7 +16,9 @@ use bevy_cloth::solver::implicit::ImplicitSolver;
 use bevy_cloth::solver::linear::{
     CgConfig, LinearImplicitSolver, LinearSystem, LinearWorkspace, SpringJacobian,
 };
-use bevy_cloth::solver::projective::{GlobalSolve, PD_ITERATIONS, ProjectiveSolver};
+use bevy_cloth::solver::projective::{
+    GlobalSolve, PD_ITERATIONS, ProjectiveSolver, ProjectiveWorkspace,
+};
 use bevy_cloth::solver::{LAB_ITERATIONS, LAB_RHO, Simd, SpringStiffness, StepParams};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -208,6 +211,77 @@ pub fn sweep(config: &PerfConfig, progress: impl Fn(&str)) -> Vec<Case> {
         }
     }
     cases
+}
+
+/// One size of [`sphere_steps`].
+#[derive(Clone, Debug)]
+pub struct SphereRow {
+    /// Grid side.
+    pub n: usize,
+    /// Time per step (one thread).
+    pub step: Timing,
+    /// Mean iterations per step.
+    pub iterations: f64,
+    /// Steps whose set of vertices near the sphere changed (each updates
+    /// the global solve's factor or multigrid hierarchy).
+    pub changes: u32,
+    /// Timed steps.
+    pub steps: usize,
+}
+
+/// The penalty sphere of the report's sphere scene (the lab's sphere,
+/// stiffer than the cloth's inertia).
+fn penalty_sphere() -> PenaltySphere {
+    PenaltySphere {
+        center: Vec3A::new(0.0, -4.0, 4.0),
+        radius: 2.7,
+        stiffness: 1e4,
+        surface: Default::default(),
+    }
+}
+
+/// `pd` (its preset) on [`scale_model`] falling from rest onto
+/// [`penalty_sphere`]: 40 consecutive steps after 20, each timed, at each
+/// of [`PerfConfig::sphere_sides`]. Unlike the sweep's, the steps run on:
+/// the sphere's contacts change from step to step.
+pub fn sphere_steps(config: &PerfConfig) -> Vec<SphereRow> {
+    let params = StepParams {
+        parallel: false,
+        ..StepParams::LAB
+    };
+    let spheres = [penalty_sphere()];
+    let method = ProjectiveSolver::PRESET;
+    config
+        .sphere_sides
+        .iter()
+        .map(|&n| {
+            let model = scale_model(n);
+            let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+            let mut ws = ProjectiveWorkspace::default();
+            let (mut samples, mut iterations, mut changes) = (Vec::new(), 0, 0);
+            for step in 0..60 {
+                let before = ws.factorizations();
+                let t = Instant::now();
+                let report = method
+                    .step(&model, &mut state, &params, &spheres, &mut ws)
+                    .expect("the lab cloth steps onto the sphere");
+                let elapsed = t.elapsed().as_secs_f64();
+                if step >= 20 {
+                    samples.push(elapsed);
+                    iterations += report.iterations;
+                    changes += u32::from(ws.factorizations() > before);
+                }
+            }
+            let steps = samples.len();
+            SphereRow {
+                n,
+                step: Timing::of(samples),
+                iterations: f64::from(iterations) / steps as f64,
+                changes,
+                steps,
+            }
+        })
+        .collect()
 }
 
 /// An app of `MinimalPlugins` with `cloths` lab cloths (21², Chebyshev 32)
