@@ -58,6 +58,17 @@ pub struct ReportScene {
     pub warmup: usize,
 }
 
+/// The sphere scene's sphere: the lab's, as a penalty sphere (stiffness
+/// 1e4, stiffer than the cloth's inertia, `m/h²` ≈ 900).
+pub fn penalty_sphere() -> PenaltySphere {
+    PenaltySphere {
+        center: Vec3A::new(0.0, -4.0, 4.0),
+        radius: 2.7,
+        stiffness: 1e4,
+        surface: Default::default(),
+    }
+}
+
 impl ReportScene {
     /// The lab's `n×n` cloth (10×10 units, total mass 441 as at 21×21,
     /// `k = 8000`, `dt = 0.0333`), hanging, optionally with the lab's sphere
@@ -69,12 +80,7 @@ impl ReportScene {
             .build()
             .expect("valid lab cloth");
         let spheres = if sphere {
-            vec![PenaltySphere {
-                center: Vec3A::new(0.0, -4.0, 4.0),
-                radius: 2.7,
-                stiffness: 1e4,
-                surface: Default::default(),
-            }]
+            vec![penalty_sphere()]
         } else {
             Vec::new()
         };

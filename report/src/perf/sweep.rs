@@ -4,10 +4,9 @@
 use std::time::{Duration, Instant};
 
 use bevy::app::App;
-use bevy::math::{Affine3A, Vec3A};
+use bevy::math::Affine3A;
 use bevy::prelude::{Fixed, MinimalPlugins, Time, Transform, Virtual};
 use bevy::time::TimeUpdateStrategy;
-use bevy_cloth::collision::PenaltySphere;
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::Method;
@@ -229,19 +228,8 @@ pub struct SphereRow {
     pub steps: usize,
 }
 
-/// The penalty sphere of the report's sphere scene (the lab's sphere,
-/// stiffer than the cloth's inertia).
-fn penalty_sphere() -> PenaltySphere {
-    PenaltySphere {
-        center: Vec3A::new(0.0, -4.0, 4.0),
-        radius: 2.7,
-        stiffness: 1e4,
-        surface: Default::default(),
-    }
-}
-
-/// `pd` (its preset) on [`scale_model`] falling from rest onto
-/// [`penalty_sphere`]: 40 consecutive steps after 20, each timed, at each
+/// `pd` (its preset) on [`scale_model`] falling from rest onto the
+/// report's sphere ([`penalty_sphere`](crate::accuracy::penalty_sphere)): 40 consecutive steps after 20, each timed, at each
 /// of [`PerfConfig::sphere_sides`]. Unlike the sweep's, the steps run on:
 /// the sphere's contacts change from step to step.
 pub fn sphere_steps(config: &PerfConfig) -> Vec<SphereRow> {
@@ -249,7 +237,7 @@ pub fn sphere_steps(config: &PerfConfig) -> Vec<SphereRow> {
         parallel: false,
         ..StepParams::LAB
     };
-    let spheres = [penalty_sphere()];
+    let spheres = [crate::accuracy::penalty_sphere()];
     let method = ProjectiveSolver::PRESET;
     config
         .sphere_sides
