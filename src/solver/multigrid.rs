@@ -28,7 +28,11 @@
 //!   takes the Galerkin image of the change, `Pᵀ ΔS P`, and only the
 //!   coarsest factor is made again (`Multigrid::set_diagonal`). A new
 //!   hierarchy per change cost the lab sheet falling onto a penalty sphere
-//!   25 ms per step at 201² (9 with the update, the same error);
+//!   25 ms per step at 201² (9 with the update, the same error). The
+//!   prolongations stay those of the matrix without contacts, so where a
+//!   penalty dominates the diagonal a cycle gains a little less (the
+//!   assignment's 80² cloth under its sweeping sphere: 9 of 600 steps
+//!   flagged as not converged, against none);
 //! - **the coarsest level** is solved exactly: by a dense Cholesky factor
 //!   up to [`DENSE_MAX`] unknowns, by faer's sparse Cholesky above (a
 //!   stalled finest level makes the cycle the direct solve).
