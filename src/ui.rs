@@ -395,7 +395,13 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
             chebyshev_ui(ui, &mut i.chebyshev);
         }
         AnyMethod::Projective(p) => {
-            iterations_ui(ui, &mut p.iterations, "local–global iterations");
+            // With the early stop the count is a budget.
+            let label = if p.tolerance > 0.0 {
+                "local–global iterations (at most)"
+            } else {
+                "local–global iterations"
+            };
+            iterations_ui(ui, &mut p.iterations, label);
             let mut anderson = p.anderson > 0;
             if ui
                 .checkbox(&mut anderson, "Anderson acceleration (stiff cloth)")
