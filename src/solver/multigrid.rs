@@ -27,8 +27,9 @@
 //!   change) keeps the aggregates and prolongations: each coarse matrix
 //!   takes the Galerkin image of the change, `Pᵀ ΔS P`, and only the
 //!   coarsest factor is made again (`Multigrid::set_diagonal`). A new
-//!   hierarchy per change cost the lab sheet falling onto a penalty sphere
-//!   25 ms per step at 201² (9 with the update, the same error). The
+//!   hierarchy per change cost the perf page's cloth falling onto a
+//!   penalty sphere 31 ms per step at 201² (11 with the update, the same
+//!   iterations and per-step error). The
 //!   prolongations stay those of the matrix without contacts, so where a
 //!   penalty dominates the diagonal a cycle gains a little less (the
 //!   assignment's 80² cloth under its sweeping sphere: 9 of 600 steps
@@ -651,8 +652,11 @@ impl Multigrid {
             if at > 0 && !add(&mut level.a, &delta) {
                 return Ok(false);
             }
-            for &(i, j) in delta.keys().filter(|(i, j)| i == j) {
-                let d = level.a.val[level.a.position(i as usize, j as usize).unwrap_or(0)];
+            for &(i, _) in delta.keys().filter(|(i, j)| i == j) {
+                let Some(pos) = level.a.position(i as usize, i as usize) else {
+                    return Ok(false);
+                };
+                let d = level.a.val[pos];
                 level.smooth[i as usize] = (level.omega / d) as f32;
                 if let (0, Some(fine)) = (at, &mut self.fine) {
                     let v = fine.free[i as usize] as usize;
