@@ -165,7 +165,7 @@
 //! - Every iteration of the spring-based methods is two passes: one over
 //!   springs in packed SIMD, which computes each spring's term once (four
 //!   springs at a time in glam's `Vec4`, or eight with AVX2, chosen at run
-//!   time and giving the same bits: [`solver::simd`]); one over vertices, which gathers its
+//!   time and giving the same bits: `solver::engine::simd`); one over vertices, which gathers its
 //!   springs' terms ([`model::Adjacency::by_side`], or fixed-length
 //!   [`model::Adjacency::padded`] rows: no scattered writes, no
 //!   atomics) and updates the vertex in the same loop. Both passes are bound
@@ -178,7 +178,7 @@
 //!   most eight offset families `o` — runs the implicit iteration (Jacobi,
 //!   Chebyshev), PBD's strain limiting, symplectic Euler's spring forces
 //!   and projective dynamics' local step on structure-of-arrays kernels
-//!   instead (`solver::stencil`, `solver::pbd_stencil`, built with the
+//!   instead (`solver::engine::stencil`, built with the
 //!   topology, invisible to users): a
 //!   family's springs are two contiguous runs of positions, so both passes
 //!   are plain streams the compiler vectorises, compiled for SSE2/NEON,
@@ -343,6 +343,7 @@
 //! MIT OR Apache-2.0.
 
 #![warn(missing_docs)]
+#![deny(unsafe_code)]
 
 pub mod aero;
 #[cfg(feature = "avian")]
@@ -356,6 +357,8 @@ pub mod model;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod solver;
+#[cfg(test)]
+mod test_rng;
 #[cfg(feature = "egui")]
 pub mod ui;
 
@@ -366,15 +369,15 @@ use bevy::prelude::FixedUpdate;
 
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
-    ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethod,
-    ClothMethods, ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems,
-    ClothSimulation, ClothStats, ClothStatus, ClothSystems, ClothWorkspace, ContactResponse,
-    CuboidCollider, DivergenceReason, GuardAction, MethodPlugin, PlaneCollider,
-    ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+    ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
+    ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation,
+    ClothStats, ClothStatus, ClothSystems, ContactResponse, CuboidCollider, DivergenceReason,
+    GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+    SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
-    AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin, Preset,
-    ProjectivePlugin, SymplecticPlugin,
+    AnyMethod, ClothMethod, ClothWorkspace, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin,
+    MethodPlugin, PRESETS, PbdPlugin, Preset, ProjectivePlugin, SymplecticPlugin,
 };
 pub use solver::exact::ExactSolver;
 pub use solver::implicit::{ImplicitSolver, Rho};

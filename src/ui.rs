@@ -19,7 +19,7 @@ use crate::ecs::{
 };
 use crate::methods::{AnyMethod, AnyMethodData, PRESETS};
 use crate::model::{ClothBuildError, ClothModel};
-use crate::solver::implicit::Rho;
+use crate::solver::chebyshev::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
 use crate::solver::projective::{
     GlobalSolve, MULTIGRID_CYCLES, MULTIGRID_FROM, PD_ANDERSON_WINDOW, PD_TOLERANCE,

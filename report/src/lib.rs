@@ -20,6 +20,11 @@
 //! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
 //! ```
 
+// Only the machine-limit probes (`perf::machine`: a STREAM triad and an FMA
+// peak at each SIMD level) may use `unsafe`; the library's own rule is the
+// same, with its engine room (`bevy_cloth::solver::engine`).
+#![deny(unsafe_code)]
+
 pub mod accuracy;
 pub mod chart;
 pub mod perf;

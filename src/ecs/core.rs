@@ -1,6 +1,9 @@
 //! The core plugin: sets, registration, placing and pinning cloths, and the
 //! divergence guard.
 
+use core::any::TypeId;
+
+use bevy::ecs::component::ComponentId;
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;
@@ -8,11 +11,10 @@ use bevy::transform::helper::TransformHelper;
 use bevy::utils::Parallel;
 
 use super::{
-    Cloth, ClothColliders, ClothDiverged, ClothFollowSystems, ClothGuard, ClothMethods,
-    ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems, ClothStats, ClothStatus,
-    ClothSystems, GuardAction,
+    Cloth, ClothColliders, ClothDiverged, ClothFollowSystems, ClothGuard, ClothNotConverged,
+    ClothParams, ClothSchedule, ClothScheduleSystems, ClothStats, ClothStatus, ClothSystems,
+    GuardAction,
 };
-use crate::methods::{AnyMethod, AnyMethodData};
 use crate::solver;
 
 /// Registers the cloth components and messages, adds [`ClothSchedule`]
@@ -268,7 +270,6 @@ fn guard_and_measure(
         &ClothParams,
         &ClothGuard,
         &mut ClothStats,
-        AnyMethodData,
     )>,
     mut diverged: Local<Parallel<Vec<ClothDiverged>>>,
     mut unconverged: Local<Parallel<Vec<ClothNotConverged>>>,
@@ -279,30 +280,10 @@ fn guard_and_measure(
     if dt <= 0.0 {
         return;
     }
-    for_each_cloth!(cloths, |(
-        entity,
-        mut cloth,
-        params,
-        guard,
-        mut stats,
-        method,
-    )| {
+    for_each_cloth!(cloths, |(entity, mut cloth, params, guard, mut stats)| {
         let cloth = &mut *cloth;
+        // A cloth no method stepped: `methods::report_unclaimed` tells.
         if !cloth.claimed {
-            let method = AnyMethod::from_item(method).map(|m| m.name());
-            if stats.status != (ClothStatus::NoMethod { method }) {
-                match method {
-                    Some(name) => warn!(
-                        "cloth {entity} is not simulated: its method '{name}' has no plugin \
-                             in this app; add its plugin (or `ClothPlugins`)"
-                    ),
-                    None => warn!(
-                        "cloth {entity} is not simulated: it has no method component; \
-                             insert one, e.g. `ImplicitSolver::default()`"
-                    ),
-                }
-                stats.status = ClothStatus::NoMethod { method };
-            }
             return;
         }
         if let Some(relative_error) = cloth.not_converged.take() {
@@ -389,5 +370,27 @@ impl ClothCorePlugin {
         if !app.is_plugin_added::<Self>() {
             app.add_plugins(self);
         }
+    }
+}
+
+/// The method components registered by method plugins, for the
+/// one-method-per-cloth rule.
+#[derive(Resource, Default, Debug)]
+pub struct ClothMethods {
+    pub(crate) ids: Vec<(ComponentId, TypeId, &'static str)>,
+}
+
+impl ClothMethods {
+    /// The registered methods, in registration order, each by the
+    /// [`Method::name`] of its default settings (`"jacobi"` for
+    /// [`ImplicitPlugin`](crate::ImplicitPlugin)).
+    pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.ids.iter().map(|&(_, _, name)| name)
+    }
+
+    /// True if the plugin of the method whose settings type has this
+    /// [`TypeId`] was added (see [`AnyMethod::type_id`](crate::methods::AnyMethod::type_id)).
+    pub fn contains(&self, type_id: TypeId) -> bool {
+        self.ids.iter().any(|&(_, t, _)| t == type_id)
     }
 }

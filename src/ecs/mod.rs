@@ -52,13 +52,13 @@ macro_rules! for_each_cloth {
         }
     };
 }
+pub(crate) use for_each_cloth;
 
 mod attach;
 mod collision;
 mod components;
 mod core;
 mod mesh_source;
-mod method;
 mod schedule;
 mod wind;
 
@@ -75,9 +75,8 @@ pub(crate) use collision::{
     project_cloths_on_shapes as project_after_shapes, project_running_cloths,
 };
 pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
-pub use core::{ClothCorePlugin, ClothSimulation};
+pub use core::{ClothCorePlugin, ClothMethods, ClothSimulation};
 pub use mesh_source::ClothFromMesh;
-pub use method::{ClothMethod, ClothMethods, ClothWorkspace, MethodPlugin};
 pub use schedule::{ClothFollowSystems, ClothSchedule, ClothScheduleSystems, ClothSystems};
 pub use wind::{ClothAerodynamics, Wind, WindPlugin};
 

@@ -8,6 +8,7 @@ mod builder;
 mod error;
 mod order;
 mod state;
+pub(crate) mod stencil;
 mod topology;
 
 use std::sync::Arc;

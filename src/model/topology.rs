@@ -4,7 +4,7 @@
 use bevy::math::Vec3;
 
 use super::ClothBuildError;
-use crate::solver::stencil::Stencil;
+use super::stencil::Stencil;
 
 /// What a spring models. Each kind has its own stiffness in
 /// [`SpringStiffness`](crate::solver::SpringStiffness).

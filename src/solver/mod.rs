@@ -5,7 +5,8 @@
 //! is allocated on the first step and reused afterwards (no allocation per
 //! step once the sizes are known).
 //!
-//! Each method is a settings type implementing [`Method`], in its own file:
+//! Each method is a settings type implementing [`Method`], in its own folder
+//! (or file) holding everything that is only that method's:
 //!
 //! | settings ([`Method`]) | method | file | spec |
 //! |---|---|---|---|
@@ -24,36 +25,31 @@
 //! The divergence guard ([`guard`]) checks a step and retries it with
 //! halved time steps when it fails.
 //!
-//! Shared parts: [`params`] (what a step takes and returns), [`kernels`]
-//! (the packed-SIMD spring pass and the chunked parallel loops), [`simd`]
-//! (the spring pass at the CPU's widest SIMD, chosen at run time),
-//! `stencil` (the implicit iteration's structure-of-arrays kernels for a
-//! grid cloth: crate-private, chosen per cloth when its topology is built),
-//! [`measures`] ([`objective`], [`gradient`], [`max_stretch`], [`energy`], [`measure`],
-//! [`step_error`], [`ConvergenceSums`]) and [`cholesky`] (the sparse factorisation the direct
-//! methods share).
+//! Shared parts: [`params`] (what a step takes and returns), [`method`]
+//! (the trait), [`measures`] ([`objective`], [`gradient`], [`max_stretch`],
+//! [`energy`], [`measure`], [`step_error`], [`ConvergenceSums`]),
+//! [`chebyshev`] (the acceleration the implicit iteration and projective
+//! dynamics share) and the engine room (`engine`, hidden from the docs: the
+//! SIMD spring passes, the grid kernels, the parallel phases and the sparse
+//! factorisation; the only module with `unsafe` code).
 
-pub mod cholesky;
+pub mod chebyshev;
+#[doc(hidden)]
+#[allow(unsafe_code)]
+pub mod engine;
 pub mod exact;
 pub mod guard;
 pub mod implicit;
-pub mod kernels;
-mod lanes;
 pub mod linear;
 pub mod measures;
 pub mod method;
-mod multigrid;
 pub mod params;
 pub mod pbd;
-mod pbd_stencil;
-mod phases;
 pub mod projective;
-pub mod simd;
-pub(crate) mod stencil;
-mod supernodal;
 pub mod symplectic;
 
-pub use kernels::PARALLEL_MIN;
+pub use engine::kernels::PARALLEL_MIN;
+pub use engine::simd::Simd;
 pub use measures::{
     ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective, step_error,
 };
@@ -63,7 +59,6 @@ pub use params::{
     CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,
     StepReport,
 };
-pub use simd::Simd;
 
 #[cfg(test)]
 mod tests;

@@ -15,11 +15,11 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{spring_terms, stiffness_coeffs};
-use super::stencil::StencilWorkspace;
 use super::{Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::engine::springs::{spring_terms, stiffness_coeffs};
+use crate::solver::engine::stencil::StencilWorkspace;
 
 /// Steps a cloth by symplectic Euler (`A = M`, the assignment's first
 /// stage): `v ← v + h M⁻¹f`, `x ← x + h v` (see the module docs). Explicit,

@@ -1,27 +1,18 @@
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
 use super::implicit::{ImplicitSolver, ImplicitWorkspace};
-use super::kernels::Springs;
 use super::pbd::{PbdSolver, PbdWorkspace};
 use super::*;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::ParamError;
+use crate::solver::engine::kernels::Springs;
+use crate::solver::engine::simd;
+use crate::test_rng::noise;
 
 fn lab() -> (ClothModel, ClothState) {
     let model = ClothBuilder::lab().build().unwrap();
     let state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     (model, state)
-}
-
-/// A deterministic pseudo-random vector in [-1, 1]³.
-fn noise(seed: &mut u64) -> Vec3A {
-    let mut next = || {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    Vec3A::new(next(), next(), next())
 }
 
 /// A swinging state: the lab cloth after `steps` Jacobi steps.

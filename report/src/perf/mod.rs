@@ -25,6 +25,7 @@
 //! divergence guard's default check ([`GuardBounds::default`](bevy_cloth::solver::guard::GuardBounds::default)) runs on the
 //! result: a timed step the guard would have rejected is marked.
 
+#[allow(unsafe_code)]
 mod machine;
 mod page;
 mod sweep;

@@ -185,10 +185,10 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         writeln!(
             w,
             "Every SIMD level this CPU runs, one thread: the lab step (Chebyshev 32) at 21² and at \
-             the largest size on the stencil kernels (`solver::stencil`, the default for a grid \
+             the largest size on the stencil kernels (`solver::engine::stencil`, the default for a grid \
              numbered row by row, as every builder's: structure-of-arrays spring and vertex \
              passes, both compiled for each level); for comparison the same step at 21² on the \
-             general kernels (`solver::simd`: only their spring pass is compiled per level, the \
+             general kernels (`solver::engine::simd`: only their spring pass is compiled per level, the \
              vertex gather is the baseline's) and their 32 spring passes alone. Each kind of \
              kernel gives the same bits at every level (tested); the two kinds agree within \
              `f32` rounding (a vertex sums its springs in another order). `auto` runs AVX2 \

@@ -40,10 +40,10 @@ use faer::dyn_stack::MemBuffer;
 pub use assembly::LinearSystem;
 use assembly::pattern_key;
 
-use super::cholesky::SparseCholesky;
 use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::engine::cholesky::SparseCholesky;
 
 /// Preconditioner of the conjugate gradient solve.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -3,6 +3,7 @@ use bevy::math::{Affine3A, DMat3, DVec3, Vec3, Vec3A};
 use super::*;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::SpringStiffness;
+use crate::test_rng::noise;
 
 /// The assignment's scene parameters: h = 5e-3, E = 10, gravity −9.8 y, no
 /// damping.
@@ -41,7 +42,7 @@ fn assemble(
 
 /// Dense Cholesky: true if the symmetric matrix is positive definite.
 fn positive_definite(a: &[f64], n: usize) -> bool {
-    crate::solver::multigrid::cholesky_in_place(&mut a[..n * n].to_vec(), n)
+    crate::solver::engine::cholesky::cholesky_in_place(&mut a[..n * n].to_vec(), n)
 }
 
 #[test]
@@ -95,17 +96,6 @@ fn golden_first_step_of_the_assignment() {
     assert!((a[3] + 2.5e-4).abs() < 1e-9);
     assert!((a[3 * 6 + 5] + 1.25e-4).abs() < 1e-9);
     assert!((system.rhs()[1] + 0.025 * 9.8 * 5e-3).abs() < 1e-9);
-}
-
-/// A deterministic pseudo-random vector in [-1, 1]³.
-fn noise(seed: &mut u64) -> Vec3A {
-    let mut next = || {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    Vec3A::new(next(), next(), next())
 }
 
 /// `K` from the assembled `A = M − h²K`, and `f` from `b = Mv + hf` (v = 0).

@@ -28,7 +28,7 @@
 
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 
-use super::kernels::dot;
+use crate::solver::engine::kernels::dot;
 
 /// One supernode, renumbered: columns `start..start + size`, its rows below
 /// the diagonal block (`pattern`), and its values column-major
@@ -154,7 +154,7 @@ fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
 }
 
 /// faer's supernodal structure, borrowed.
-pub(super) struct Structure<'a> {
+pub(crate) struct Structure<'a> {
     pub begin: &'a [usize],
     pub end: &'a [usize],
     pub row_ptr: &'a [usize],
@@ -178,7 +178,7 @@ impl<'a> Structure<'a> {
 /// The renumbering and split of one symbolic factorisation (see the module
 /// docs).
 #[derive(Debug, Default)]
-pub(super) struct Plan {
+pub(crate) struct Plan {
     /// `x[i] = rhs[gather[i]]` per column, and `rhs[i] = x[scatter[i]]`.
     gather: Vec<usize>,
     scatter: Vec<usize>,
@@ -199,7 +199,7 @@ impl Plan {
     /// (forward, inverse), if any: subtrees dealt to two bins as the module
     /// docs say (both bins empty if faer's supernodes are not in postorder,
     /// which the split relies on).
-    pub(super) fn new(s: &Structure<'_>, perm: Option<(&[usize], &[usize])>) -> Self {
+    pub(crate) fn new(s: &Structure<'_>, perm: Option<(&[usize], &[usize])>) -> Self {
         let (ns, n) = (s.begin.len(), s.end.last().copied().unwrap_or(0));
         let mut supernode_of = vec![0; n];
         for k in 0..ns {
@@ -316,14 +316,14 @@ impl Plan {
     }
 
     /// Both parts have work: worth two tasks.
-    pub(super) fn splits(&self) -> bool {
+    pub(crate) fn splits(&self) -> bool {
         self.len.iter().all(|&l| l > 0)
     }
 }
 
 /// Scratch of one part.
 #[derive(Debug, Default)]
-pub(super) struct PartScratch {
+pub(crate) struct PartScratch {
     tmp: Vec<[f64; 3]>,
     /// Pending subtractions from the top rows, column-major.
     delta: Vec<f64>,
@@ -332,7 +332,7 @@ pub(super) struct PartScratch {
 /// Solves `L Lᵀ X = rhs` for three columns (`rhs` column-major `n×3`) with
 /// the supernodal factor `values` of structure `s` and its `plan`, on
 /// `pool` if given (see the module docs).
-pub(super) fn solve3(
+pub(crate) fn solve3(
     s: &Structure<'_>,
     values: &[f64],
     plan: &Plan,
@@ -459,7 +459,7 @@ fn split_parts<'a>(columns: &'a mut [&mut [f64]; 3], len: [usize; 2]) -> [[&'a m
 }
 
 /// Runs `f` on both items: on `pool` as two tasks, or one after the other.
-pub(super) fn run_both<T: Send>(
+pub(crate) fn run_both<T: Send>(
     pool: Option<&bevy::tasks::ComputeTaskPool>,
     items: [T; 2],
     f: impl Fn(T) + Send + Sync,

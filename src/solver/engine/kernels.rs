@@ -3,8 +3,6 @@
 
 use bevy::math::{Mat4, Vec3A, Vec4};
 
-use super::SpringStiffness;
-use super::simd::spring_products;
 use crate::model::{ClothModel, Spring};
 
 /// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
@@ -227,70 +225,154 @@ impl<'a> Springs<'a> {
     }
 }
 
-/// The two sums of a vertex's padded row (see
-/// [`Adjacency::padded`](crate::model::Adjacency::padded)):
-/// `start(items[e])` over its start springs and `end(items[e])` over its
-/// end springs, each summed as a tree (short chains of additions).
+/// [`spring_scales`] over a model's springs, with each spring's two end
+/// positions given to `emit(e, d, scale, x_a, x_b)` too. The positions are
+/// read without a bounds check per index: [`Springs`] bounds every index,
+/// and `x` is checked against that bound once.
 ///
-/// # Safety
-///
-/// Every index of `row` is below `items.len()`. A padded row holds spring
-/// indices and the pad `springs.len()`, so per-spring `items` with one entry
-/// more than the springs (the pad's, which must sum as zero) are enough.
-/// Unchecked: the eight bounds checks were a quarter of the instructions
-/// of the lab's vertex pass, and that pass is bound by instructions.
+/// # Panics
+/// If `x` has fewer than [`Springs::vertices`] positions, or `coeffs` fewer
+/// entries than the springs.
 #[inline(always)]
-pub(crate) unsafe fn padded_gather<T>(
-    row: &[[u32; 4]; 2],
-    items: &[T],
-    start: impl Fn(&T) -> Vec3A,
-    end: impl Fn(&T) -> Vec3A,
-) -> (Vec3A, Vec3A) {
-    debug_assert!(row.iter().flatten().all(|&e| (e as usize) < items.len()));
-    let [p, m] = row;
-    // SAFETY: in bounds by the caller's contract.
-    let item = |e: u32| unsafe { items.get_unchecked(e as usize) };
-    let (a, b) = (|e| start(item(e)), |e| end(item(e)));
-    (
-        (a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])),
-        (b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3])),
-    )
-}
-
-/// Per spring `[k, kL]`, the coefficients of the implicit gradient term
-/// `d·k(1 − L/l)` for the spring pass.
-pub fn stiffness_coeffs(model: &ClothModel, stiffness: &SpringStiffness, out: &mut Vec<[f32; 2]>) {
-    let k = stiffness.as_array();
-    out.clear();
-    out.extend(model.topology().springs().iter().map(|s| {
-        let k = k[s.kind as usize];
-        [k, k * s.rest_length]
-    }));
-}
-
-/// Fills `terms[e]` with each spring's gradient term `k(1 − L/l)(x_a − x_b)`
-/// at positions `x`, in parallel chunks for large cloths
-/// ([`StepParams::parallel`](super::StepParams::parallel)), at the SIMD
-/// level [`StepParams::simd`](super::StepParams::simd) chooses (the same
-/// bits at every level). `coeffs` is from [`stiffness_coeffs`].
-pub fn spring_terms(
-    params: &super::StepParams,
-    model: &ClothModel,
-    x: &[Vec3A],
+pub(crate) fn spring_scales_ends(
+    springs: Springs<'_>,
     coeffs: &[[f32; 2]],
-    terms: &mut [Vec3A],
+    x: &[Vec3A],
+    mut emit: impl FnMut(usize, Vec3A, f32, Vec3A, Vec3A),
 ) {
-    let springs = Springs::of(model);
-    for_chunks(params.parallel, terms, |start, terms| {
-        let end = start + terms.len();
-        spring_products(
-            params.simd,
-            springs.range(start..end),
-            &coeffs[start..end],
-            x,
-            terms,
-        );
+    assert!(x.len() >= springs.vertices());
+    let list = springs.list();
+    let coeffs = &coeffs[..list.len()];
+    // SAFETY: every index of `list` is below `springs.vertices()`
+    // (`Springs`' invariant), and so below `x.len()` (asserted above).
+    let load = |v: u32| unsafe { *x.get_unchecked(v as usize) };
+    spring_scales_by(list, coeffs, load, |e, d, scale| {
+        let s = &list[e];
+        emit(e, d, scale, load(s.a), load(s.b));
     });
+}
+
+/// A cloth's padded rows (see
+/// [`Adjacency::padded`](crate::model::Adjacency::padded)) as byte offsets
+/// into per-spring items of one type, each index checked against the item
+/// count when the rows were filled: what lets [`RowGather`] read the items
+/// without a bounds check per index (the eight checks were a quarter of
+/// the instructions of the lab's vertex pass, which is bound by
+/// instructions).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct PaddedRows {
+    rows: Vec<[[u32; 4]; 2]>,
+    /// Every offset is `item_bytes·e` for an `e` below this.
+    items: usize,
+    item_bytes: usize,
+}
+
+impl PaddedRows {
+    /// Takes `rows` for items of type `T`, `items` of them (a padded row
+    /// holds spring indices and the pad `springs.len()`, so one item per
+    /// spring and one more for the pad). Leaves the rows empty, and returns
+    /// false, when an offset would not fit in `u32` (such a cloth runs the
+    /// unpadded gathers).
+    ///
+    /// # Panics
+    /// If an index of `rows` is not below `items`.
+    pub(crate) fn fill<T>(&mut self, rows: &[[[u32; 4]; 2]], items: usize) -> bool {
+        let bytes = std::mem::size_of::<T>();
+        self.rows.clear();
+        self.items = items;
+        self.item_bytes = bytes;
+        if items > (u32::MAX as usize) / bytes {
+            return false;
+        }
+        let max = rows.iter().flatten().flatten().copied().max().unwrap_or(0);
+        assert!(
+            rows.is_empty() || (max as usize) < items,
+            "padded row index {max} for {items} items"
+        );
+        let b = bytes as u32;
+        self.rows
+            .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * b))));
+        true
+    }
+
+    /// Empties the rows.
+    pub(crate) fn clear(&mut self) {
+        self.rows.clear();
+    }
+
+    /// True when there are no rows.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// How many rows.
+    pub(crate) fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// The gathers of rows `range` over `items`.
+    ///
+    /// # Panics
+    /// If `items` is shorter than the count the rows were checked against,
+    /// or is of another type's size.
+    pub(crate) fn gather<'a, T>(
+        &'a self,
+        range: std::ops::Range<usize>,
+        items: &'a [T],
+    ) -> RowGather<'a, T> {
+        assert!(items.len() >= self.items && std::mem::size_of::<T>() == self.item_bytes);
+        RowGather {
+            rows: &self.rows[range],
+            items,
+        }
+    }
+}
+
+/// Gathers over some of a [`PaddedRows`]' rows, each row's items read
+/// without a bounds check per index.
+#[derive(Clone, Copy)]
+pub(crate) struct RowGather<'a, T> {
+    rows: &'a [[[u32; 4]; 2]],
+    items: &'a [T],
+}
+
+impl<T> RowGather<'_, T> {
+    /// The first `n` rows of these (so a loop over `0..n` needs no bounds
+    /// checks).
+    ///
+    /// # Panics
+    /// If there are fewer than `n` rows.
+    #[inline(always)]
+    pub(crate) fn first(self, n: usize) -> Self {
+        Self {
+            rows: &self.rows[..n],
+            items: self.items,
+        }
+    }
+
+    /// The two sums of row `j` (counted within the gather's range):
+    /// `start(item)` over its start springs and `end(item)` over its end
+    /// springs, each summed as a tree (short chains of additions).
+    #[inline(always)]
+    pub(crate) fn sums(
+        &self,
+        j: usize,
+        start: impl Fn(&T) -> Vec3A,
+        end: impl Fn(&T) -> Vec3A,
+    ) -> (Vec3A, Vec3A) {
+        let [p, m] = &self.rows[j];
+        let base = self.items.as_ptr().cast::<u8>();
+        // SAFETY: every offset of the rows is `size_of::<T>()·e` for an `e`
+        // below the checked item count (`PaddedRows::fill`), and `items`
+        // has at least that many (`PaddedRows::gather`); aligned, as the
+        // items are.
+        let item = |b: u32| unsafe { &*base.add(b as usize).cast::<T>() };
+        let (a, b) = (|o| start(item(o)), |o| end(item(o)));
+        (
+            (a(p[0]) + a(p[1])) + (a(p[2]) + a(p[3])),
+            (b(m[0]) + b(m[1])) + (b(m[2]) + b(m[3])),
+        )
+    }
 }
 
 /// `a·b` with four running sums (one sum would wait on each add's latency).

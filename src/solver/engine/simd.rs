@@ -3,7 +3,7 @@
 //!
 //! This is the general kernels' spring pass, over any spring list. A grid
 //! cloth's implicit iteration runs the stencil kernels instead
-//! (`solver::stencil`), whose plain loops the compiler vectorises at each
+//! (`solver::engine::stencil`), whose plain loops the compiler vectorises at each
 //! level; [`Simd`] chooses their level too.
 //!
 //! The crate is built for baseline x86-64 (SSE2) so that a game need not be
@@ -41,17 +41,24 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{Springs, spring_scales_by};
+use crate::solver::engine::kernels::{Springs, spring_scales_by};
 
 /// Defines `fn name(level: Simd, args…)` that runs the plain-loop kernel
 /// `kernel(args…)` compiled for `level`: the baseline, AVX2 + FMA or
 /// AVX-512F (`#[target_feature]` copies, on x86-64), so the compiler
 /// vectorises the kernel's loops at that width. `kernel` must be
 /// `#[inline(always)]` for its loops to be compiled into each copy.
+///
+/// Sound by construction: the generated function resolves `level` itself
+/// ([`Simd::resolve`], which never names a level the CPU lacks), so no
+/// caller can reach a `#[target_feature]` copy on a CPU without it. The
+/// `unsafe` it expands to is written here, in the engine room, and allowed
+/// only inside the generated function.
 macro_rules! at_level {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $kernel:ident) => {
+    ($(#[$doc:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $kernel:ident) => {
         $(#[$doc])*
-        fn $name(level: $crate::solver::Simd, $($arg: $ty),*) $(-> $ret)? {
+        #[allow(unsafe_code)]
+        $vis fn $name(level: $crate::solver::Simd, $($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
             #[target_feature(enable = "avx,avx2,fma")]
             fn avx2($($arg: $ty),*) $(-> $ret)? {
@@ -62,11 +69,12 @@ macro_rules! at_level {
             fn avx512($($arg: $ty),*) $(-> $ret)? {
                 $kernel($($arg),*)
             }
-            match level {
+            match level.resolve() {
                 // SAFETY: `Simd::resolve` returns a level only if the CPU
-                // has its features, and callers pass a resolved level.
+                // has its features.
                 #[cfg(target_arch = "x86_64")]
                 $crate::solver::Simd::Avx512 => unsafe { avx512($($arg),*) },
+                // SAFETY: as above.
                 #[cfg(target_arch = "x86_64")]
                 $crate::solver::Simd::Avx2 => unsafe { avx2($($arg),*) },
                 _ => $kernel($($arg),*),
@@ -228,7 +236,7 @@ mod x86 {
     /// The CPU must have AVX2 and FMA, and every vertex index of `springs`
     /// must be below `x.len()`.
     #[target_feature(enable = "avx,avx2,fma")]
-    pub(super) unsafe fn products_avx2(
+    pub(crate) unsafe fn products_avx2(
         springs: &[Spring],
         coeffs: &[[f32; 2]],
         x: &[Vec3A],
@@ -301,7 +309,7 @@ mod x86 {
     /// The CPU must have AVX-512F, and every vertex index of `springs` must
     /// be below `x.len()`.
     #[target_feature(enable = "avx,avx2,fma,avx512f")]
-    pub(super) unsafe fn products_avx512(
+    pub(crate) unsafe fn products_avx512(
         springs: &[Spring],
         coeffs: &[[f32; 2]],
         x: &[Vec3A],

@@ -1,22 +1,23 @@
-//! The glue every method plugin shares: one generic step system, and the rule
-//! that a cloth has at most one method component at a time.
+//! The glue every method plugin shares: one generic step system, the rule
+//! that a cloth has at most one method component at a time, and the
+//! diagnostic for a cloth that no method stepped.
 
 use core::any::TypeId;
 use core::marker::PhantomData;
 use std::time::Instant;
 
-use bevy::ecs::component::{ComponentId, Mutable};
+use bevy::ecs::component::Mutable;
 use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
 use bevy::reflect::GetTypeRegistration;
 
-use super::{
-    Cloth, ClothColliders, ClothGuard, ClothParams, ClothStats, ClothStatus, ClothSystems,
-    GuardAction,
-};
 use crate::collision::PenaltySphere;
+use crate::ecs::{
+    Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothMethods, ClothParams, ClothSchedule,
+    ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
+};
 use crate::solver::guard::{GuardError, guarded_step};
 use crate::solver::{Method, StepError};
 
@@ -54,28 +55,6 @@ pub struct ClothWorkspace<W: Default + Send + Sync + 'static> {
     penalty: Vec<PenaltySphere>,
 }
 
-/// The method components registered by method plugins, for the
-/// one-method-per-cloth rule.
-#[derive(Resource, Default, Debug)]
-pub struct ClothMethods {
-    ids: Vec<(ComponentId, TypeId, &'static str)>,
-}
-
-impl ClothMethods {
-    /// The registered methods, in registration order, each by the
-    /// [`Method::name`] of its default settings (`"jacobi"` for
-    /// [`ImplicitPlugin`](crate::ImplicitPlugin)).
-    pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
-        self.ids.iter().map(|&(_, _, name)| name)
-    }
-
-    /// True if the plugin of the method whose settings type has this
-    /// [`TypeId`] was added (see [`AnyMethod::type_id`](crate::methods::AnyMethod::type_id)).
-    pub fn contains(&self, type_id: TypeId) -> bool {
-        self.ids.iter().any(|&(_, t, _)| t == type_id)
-    }
-}
-
 /// The step systems of all methods.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 struct MethodSteps;
@@ -89,11 +68,12 @@ pub(crate) fn add_method<M: ClothMethod>(app: &mut App) {
     if methods.ids.iter().any(|&(i, _, _)| i == id) {
         return;
     }
+    let first = methods.ids.is_empty();
     methods
         .ids
         .push((id, TypeId::of::<M>(), M::default().name()));
     app.add_systems(
-        super::ClothSchedule,
+        ClothSchedule,
         step_cloths::<M>
             .in_set(ClothSystems::Step)
             .in_set(MethodSteps)
@@ -104,6 +84,12 @@ pub(crate) fn add_method<M: ClothMethod>(app: &mut App) {
     )
     .add_observer(on_method_inserted::<M>)
     .add_observer(on_method_removed::<M>);
+    if first {
+        app.add_systems(
+            ClothSchedule,
+            super::report_unclaimed.in_set(ClothSystems::SyncOut),
+        );
+    }
 }
 
 fn on_method_inserted<M: ClothMethod>(
@@ -134,7 +120,7 @@ fn on_method_removed<M: ClothMethod>(remove: On<Remove, M>, mut commands: Comman
 }
 
 /// The plugin of method `M`: it steps the cloths that carry `M` in
-/// [`ClothSystems::Step`], and adds [`ClothCorePlugin`](super::ClothCorePlugin)
+/// [`ClothSystems::Step`], and adds [`ClothCorePlugin`](crate::ClothCorePlugin)
 /// if it is missing, so each method plugin can be added on its own.
 pub struct MethodPlugin<M> {
     schedule: Interned<dyn ScheduleLabel>,
@@ -143,7 +129,7 @@ pub struct MethodPlugin<M> {
 
 impl<M> MethodPlugin<M> {
     /// Runs in `schedule`: its step system is in
-    /// [`ClothSchedule`](super::ClothSchedule), which the core plugin (added
+    /// [`ClothSchedule`](ClothSchedule), which the core plugin (added
     /// with this schedule if missing) runs there.
     pub fn new(schedule: impl ScheduleLabel) -> Self {
         Self {
@@ -178,7 +164,7 @@ impl<M> core::fmt::Debug for MethodPlugin<M> {
 
 impl<M: ClothMethod> Plugin for MethodPlugin<M> {
     fn build(&self, app: &mut App) {
-        super::ClothCorePlugin::new_interned(self.schedule).add_once(app);
+        ClothCorePlugin::new_interned(self.schedule).add_once(app);
         app.register_type::<M>()
             .register_type_data::<M, ReflectComponent>();
         add_method::<M>(app);

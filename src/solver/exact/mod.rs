@@ -37,11 +37,11 @@ use bevy::math::{DVec3, Vec3A};
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::cholesky::SparseCholesky;
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
 use super::{ConvergenceSums, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::engine::cholesky::SparseCholesky;
 
 /// Steps a cloth by exact implicit Euler: Newton's method with sparse
 /// Cholesky and a line search on the lab's objective, to a gradient
@@ -482,5 +482,4 @@ fn gradient(
 }
 
 #[cfg(test)]
-#[path = "exact_tests.rs"]
 mod tests;

@@ -23,11 +23,11 @@
 //! every SIMD level (products and sums are never fused), though not bitwise
 //! faer's (tested against it to 1e-12).
 
-use super::Simd;
-use super::simd::at_level;
+use super::simd::Simd;
+use crate::solver::engine::simd::at_level;
 
 /// One unknown's three columns and a padding lane.
-pub(super) type Lanes = [f64; 4];
+pub(crate) type Lanes = [f64; 4];
 
 /// [`Lanes`] aligned to their size, so that no load or store of one
 /// straddles two cache lines (with `Vec`'s 16-byte alignment, how many did
@@ -51,7 +51,7 @@ fn lanes(x: &mut [Aligned]) -> &mut [Lanes] {
 /// analysis; each numeric factorisation only refills its values
 /// ([`fill`](Self::fill)).
 #[derive(Debug, Default)]
-pub(super) struct LaneFactor {
+pub(crate) struct LaneFactor {
     /// `x[new] = rhs[gather[new]]` (faer's fill-reducing permutation),
     /// and its inverse: `slot[old] = new`.
     gather: Vec<u32>,
@@ -171,7 +171,7 @@ impl LaneFactor {
     /// and the fill-reducing permutation's forward array (`new → old`), if
     /// any. `None` if the factor is not laid out that way, or has more than
     /// 2¹⁶ unknowns.
-    pub(super) fn new(
+    pub(crate) fn new(
         col_ptr: &[usize],
         row_idx: &[usize],
         forward: Option<&[usize]>,
@@ -222,25 +222,25 @@ impl LaneFactor {
 
     /// Takes the values of a numeric factorisation (faer's values, laid out
     /// as the structure this was made from).
-    pub(super) fn fill(&mut self, values: &[f64]) {
+    pub(crate) fn fill(&mut self, values: &[f64]) {
         self.rows.fill(values);
         self.cols.fill(values);
         self.filled = true;
     }
 
     /// Forgets the values (the factorisation failed or was replaced).
-    pub(super) fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.filled = false;
     }
 
     /// Whether it holds a factor's values.
-    pub(super) fn is_filled(&self) -> bool {
+    pub(crate) fn is_filled(&self) -> bool {
         self.filled
     }
 
     /// Solves `L Lᵀ X = rhs` in place for `rhs` column-major `n×3`;
     /// false if the solution is not finite.
-    pub(super) fn solve3(&mut self, rhs: &mut [f64], level: Simd) -> bool {
+    pub(crate) fn solve3(&mut self, rhs: &mut [f64], level: Simd) -> bool {
         let n = self.x.len();
         debug_assert_eq!(rhs.len(), 3 * n);
         for (x, &g) in lanes(&mut self.x).iter_mut().zip(&self.gather) {
@@ -260,14 +260,14 @@ impl LaneFactor {
     /// [`solve_in_place`](Self::solve_in_place), and read the solution with
     /// [`solution`](Self::solution). This saves [`solve3`](Self::solve3)'s
     /// two permuted copies.
-    pub(super) fn rhs_mut(&mut self) -> (&[u32], &mut [Lanes]) {
+    pub(crate) fn rhs_mut(&mut self) -> (&[u32], &mut [Lanes]) {
         (&self.gather, lanes(&mut self.x))
     }
 
     /// Unknown `old`'s three columns after
     /// [`solve_in_place`](Self::solve_in_place).
     #[inline]
-    pub(super) fn solution(&self, old: usize) -> [f64; 3] {
+    pub(crate) fn solution(&self, old: usize) -> [f64; 3] {
         let Aligned(x) = self.x[self.slot[old] as usize];
         [x[0], x[1], x[2]]
     }
@@ -275,7 +275,7 @@ impl LaneFactor {
     /// Every unknown (`old`) with its three columns after
     /// [`solve_in_place`](Self::solve_in_place), in the factor's order.
     #[inline]
-    pub(super) fn solved(&self) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
+    pub(crate) fn solved(&self) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
         self.gather
             .iter()
             .zip(&self.x)
@@ -285,7 +285,7 @@ impl LaneFactor {
     /// Solves `L Lᵀ X = B` in place for the right-hand side in `self.x`
     /// (permuted, the padding lanes zero); false if the solution is not
     /// finite.
-    pub(super) fn solve_in_place(&mut self, level: Simd) -> bool {
+    pub(crate) fn solve_in_place(&mut self, level: Simd) -> bool {
         let x = lanes(&mut self.x);
         substitute(level, &self.rows, x);
         substitute(level, &self.cols, x);

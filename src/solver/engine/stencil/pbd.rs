@@ -21,11 +21,16 @@
 
 use bevy::math::Vec3A;
 
-use super::kernels::{CHUNK, parallel_pool};
-use super::pbd::SELF_WEIGHT;
-use super::phases::run_phases;
-use super::simd::{Simd, at_level};
-use super::stencil::{Ends, NONE, Ptr, PtrV, Stencil, Terms, padded_rows, to_soa};
+use super::{Ends, Ptr, PtrV, Terms, padded_rows, to_soa};
+use crate::model::stencil::{NONE, Stencil};
+use crate::solver::engine::kernels::{CHUNK, parallel_pool};
+use crate::solver::engine::phases::run_phases;
+use crate::solver::engine::simd::{Simd, at_level};
+
+/// The weight of a vertex's own position in the lab's Jacobi average (the
+/// PBD method's constant, defined here with the grid kernel that uses it
+/// and re-exported as [`solver::pbd::SELF_WEIGHT`](crate::solver::pbd::SELF_WEIGHT)).
+pub const SELF_WEIGHT: f32 = 0.2;
 
 /// The PBD iteration's arrays, sized on first use and reused after.
 #[derive(Clone, Debug, Default)]
@@ -364,7 +369,7 @@ fn vertices_by_families(
         5 => vertices_kernel::<5>(at),
         6 => vertices_kernel::<6>(at),
         7 => vertices_kernel::<7>(at),
-        _ => vertices_kernel::<{ super::stencil::MAX_FAMILIES }>(at),
+        _ => vertices_kernel::<{ crate::solver::engine::stencil::MAX_FAMILIES }>(at),
     }
 }
 

@@ -1,7 +1,7 @@
 //! The method table: every method of the crate, registered in one place.
 //!
 //! A method is a settings type that implements [`Method`] in its own solver
-//! file (e.g. [`ImplicitSolver`] in `solver/implicit.rs`). One line of the
+//! folder (e.g. [`ImplicitSolver`] in `solver/implicit/`). One line of the
 //! `method_table!` below makes it
 //!
 //! - an ECS component (inserting it on a [`Cloth`](crate::Cloth) selects
@@ -18,11 +18,16 @@
 //! all read them. A preset's name is its method's [`Method::name`], so a
 //! method is named one way everywhere.
 //!
-//! Adding a method: write `solver/<method>.rs` with its settings type and
-//! its [`Method`] impl, add one line to `method_table!` and one to
-//! [`PRESETS`].
+//! Adding a method (`CONTRIBUTING.md` has the whole list): write
+//! `solver/<method>/` with its settings type and its [`Method`] impl, add
+//! one line to `method_table!`, its presets to [`PRESETS`], and its widgets
+//! to the panel's exhaustive match (`ui.rs`).
 
 use core::any::{Any, TypeId};
+
+mod plugin;
+
+pub use plugin::{ClothMethod, ClothWorkspace, MethodPlugin};
 
 use bevy::app::PluginGroupBuilder;
 use bevy::ecs::component::{Component, Mutable, StorageType};
@@ -30,10 +35,11 @@ use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::ecs::world::EntityWorldMut;
 use bevy::prelude::EntityCommands;
+use bevy::prelude::{Entity, Query, Res, Time, warn};
 use thiserror::Error;
 
 use crate::collision::PenaltySphere;
-use crate::ecs::MethodPlugin;
+use crate::ecs::{Cloth, ClothStats, ClothStatus};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::exact::ExactSolver;
 use crate::solver::implicit::ImplicitSolver;
@@ -315,6 +321,38 @@ impl core::fmt::Debug for AnyWorkspace {
         f.debug_struct("AnyWorkspace")
             .field("workspaces", &self.slots.len())
             .finish()
+    }
+}
+
+/// Marks each cloth that no method stepped this time step as
+/// [`ClothStatus::NoMethod`], naming its method if it has one (whose plugin
+/// is then missing from the app), and warns once per change. Added by the
+/// first method plugin, beside the method table that names every method.
+pub(crate) fn report_unclaimed(
+    time: Res<Time>,
+    mut cloths: Query<(Entity, &Cloth, &mut ClothStats, AnyMethodData)>,
+) {
+    if time.delta_secs_f64() <= 0.0 {
+        return;
+    }
+    for (entity, cloth, mut stats, method) in &mut cloths {
+        if cloth.claimed {
+            continue;
+        }
+        let method = AnyMethod::from_item(method).map(|m| m.name());
+        if stats.status != (ClothStatus::NoMethod { method }) {
+            match method {
+                Some(name) => warn!(
+                    "cloth {entity} is not simulated: its method '{name}' has no plugin \
+                     in this app; add its plugin (or `ClothPlugins`)"
+                ),
+                None => warn!(
+                    "cloth {entity} is not simulated: it has no method component; \
+                     insert one, e.g. `ImplicitSolver::default()`"
+                ),
+            }
+            stats.status = ClothStatus::NoMethod { method };
+        }
     }
 }
 

@@ -10,10 +10,11 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::{Conj, MatMut, Par, Side};
 
-use super::kernels::parallel_pool;
-use super::lanes::LaneFactor;
-use super::supernodal::{PartScratch, Plan, Structure, solve3};
-use super::{Simd, SolveError};
+use super::simd::Simd;
+use crate::solver::SolveError;
+use crate::solver::engine::kernels::parallel_pool;
+use crate::solver::engine::lane_factor::LaneFactor;
+use crate::solver::engine::supernodal::{PartScratch, Plan, Structure, solve3};
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
 /// analysis is done once for a sparsity pattern and reused by every
@@ -245,14 +246,14 @@ impl SparseCholesky {
     /// successful [`factorize_llt`](Self::factorize_llt), to write a
     /// three-column right-hand side into and solve in place (module
     /// `lanes`); `None` for a supernodal factor or none.
-    pub(super) fn lanes(&mut self) -> Option<&mut LaneFactor> {
+    pub(crate) fn lanes(&mut self) -> Option<&mut LaneFactor> {
         self.lanes
             .as_mut()
             .filter(|lanes| self.factored && lanes.is_filled())
     }
 
     /// [`lanes`](Self::lanes), to read the solution.
-    pub(super) fn lanes_ref(&self) -> Option<&LaneFactor> {
+    pub(crate) fn lanes_ref(&self) -> Option<&LaneFactor> {
         self.lanes
             .as_ref()
             .filter(|lanes| self.factored && lanes.is_filled())
@@ -321,6 +322,30 @@ fn finite(x: &[f64]) -> Result<(), SolveError> {
     } else {
         Err(SolveError::Factorization)
     }
+}
+
+/// Cholesky `A = L Lᵀ` of the row-major `n×n` `a`, `L` written over its
+/// lower triangle. False if `a` is not positive definite.
+pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if d.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut v = a[i * n + j];
+            for k in 0..j {
+                v -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = v / d;
+        }
+    }
+    true
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ use crate::solver::pbd::PbdSolver;
 use crate::solver::projective::ProjectiveSolver;
 use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
+use crate::test_rng::next_u64;
 
 /// The implicit methods the stencil kernels run.
 const METHODS: [ImplicitSolver; 3] = [
@@ -101,8 +102,7 @@ fn the_builders_grids_form_a_stencil_and_a_scattered_mesh_does_not() {
     let mut order: Vec<u32> = (0..side * side).collect();
     let mut seed = 7u64;
     for i in (1..order.len()).rev() {
-        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-        order.swap(i, (seed >> 33) as usize % (i + 1));
+        order.swap(i, (next_u64(&mut seed) >> 33) as usize % (i + 1));
     }
     let mut positions = vec![Vec3::ZERO; order.len()];
     for (v, &new) in order.iter().enumerate() {

@@ -14,7 +14,7 @@
 //! (`v ← v + dt·f_c/m`). The proposals are computed once per spring and
 //! gathered per vertex. A cloth whose springs form a stencil (every
 //! builder's grid) runs step 2 on structure-of-arrays kernels at the CPU's
-//! widest SIMD (`pbd_stencil`, crate-private), unless
+//! widest SIMD (`solver::engine::stencil::pbd`, crate-private), unless
 //! [`StepParams::stencil`] is off.
 //! Pinned vertices never move (but their springs still propose positions to
 //! their neighbours).
@@ -24,14 +24,13 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{padded_gather, spring_scales_by};
-use super::pbd_stencil::PbdStencilWorkspace;
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
+use crate::solver::engine::kernels::{PaddedRows, Springs, spring_scales_ends};
+use crate::solver::engine::stencil::pbd::PbdStencilWorkspace;
 
-/// The weight of a vertex's own position in the lab's Jacobi average.
-pub const SELF_WEIGHT: f32 = 0.2;
+pub use crate::solver::engine::stencil::pbd::SELF_WEIGHT;
 
 /// Steps a cloth by position-based dynamics with the lab's Jacobi strain
 /// limiting (see the module docs). Spring stiffness is not used. As a
@@ -143,19 +142,15 @@ impl Method for PbdSolver {
         ws.inv_weight.clear();
         ws.inv_weight
             .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
+        ws.rows.clear();
+        if let Some(rows) = adjacency.padded() {
+            ws.rows.fill::<[Vec3A; 2]>(rows, springs.len() + 1);
+        }
         for _ in 0..config.iterations {
             let proposals = &mut ws.proposals;
-            // Positions read without a check per index, as in the implicit
-            // spring pass: the model's springs, and `x` has a position per
-            // vertex (`check_state` before the step; asserted here).
             assert_eq!(x.len(), n);
-            let xs = &x[..];
-            // SAFETY: every index of the model's springs is below its vertex
-            // count (checked when its topology was built), `x.len()`.
-            let load = |v: u32| unsafe { *xs.get_unchecked(v as usize) };
-            spring_scales_by(springs, &ws.coeffs, load, |e, d, half| {
-                let s = &springs[e];
-                let mid = 0.5 * (load(s.a) + load(s.b));
+            spring_scales_ends(Springs::of(model), &ws.coeffs, x, |e, d, half, xa, xb| {
+                let mid = 0.5 * (xa + xb);
                 let half = d * half;
                 proposals[e] = [mid + half, mid - half];
             });
@@ -167,17 +162,15 @@ impl Method for PbdSolver {
                 *v += (new - *x) * inv_dt;
                 *x = new;
             };
-            match adjacency.padded() {
+            match (!ws.rows.is_empty()).then(|| ws.rows.gather(0..n, proposals)) {
                 // Fixed length, summed as a tree (see the implicit solver).
                 Some(rows) => {
-                    for (i, row) in rows[..n].iter().enumerate() {
+                    let rows = rows.first(n);
+                    for i in 0..n {
                         if pinned[i] {
                             continue;
                         }
-                        // SAFETY: the model's padded rows, and one proposal
-                        // per spring plus the zero pair the pad reads.
-                        let (starts, ends) =
-                            unsafe { padded_gather(row, proposals, |p| p[0], |p| p[1]) };
+                        let (starts, ends) = rows.sums(i, |p| p[0], |p| p[1]);
                         let sum = SELF_WEIGHT * x[i] + (starts + ends);
                         update(&mut x[i], &mut v[i], sum, inv_weight[i]);
                     }
@@ -215,6 +208,9 @@ pub struct PbdWorkspace {
     coeffs: Vec<[f32; 2]>,
     /// Per vertex: `1/(0.2 + nᵢ)`.
     inv_weight: Vec<f32>,
+    /// The model's padded rows (as offsets into `proposals`), when it has
+    /// them.
+    rows: PaddedRows,
     /// The structure-of-arrays state of the stencil kernels.
     stencil: PbdStencilWorkspace,
 }

@@ -14,7 +14,7 @@
 //! neighbour) have zero coefficients, so their terms are zero.
 //!
 //! Each spring's term is the same IEEE operations in the same order as the
-//! general pass ([`spring_products`](super::simd::spring_products)): the
+//! general pass ([`spring_products`](crate::solver::engine::simd::spring_products)): the
 //! same bits per spring. A vertex sums its springs family by family rather
 //! than in its adjacency's order, so a step agrees with the general path
 //! within `f32` rounding, not bitwise.
@@ -31,97 +31,21 @@
 //! against 85.6 µs on the general kernels, `docs/perf.md`), and the loops
 //! stay readable.
 //!
-//! [`StepParams::simd`]: super::StepParams::simd
-
-use std::collections::BTreeMap;
+//! [`StepParams::simd`]: crate::solver::StepParams::simd
 
 use bevy::math::Vec3A;
 
 use super::kernels::{CHUNK, parallel_pool};
 use super::phases::run_phases;
-use super::simd::{Simd, at_level};
+use super::simd::Simd;
 use crate::collision::PenaltySphere;
-use crate::model::Spring;
+use crate::model::stencil::{MAX_FAMILIES, Stencil};
 
-/// At most this many offset families: more, and the cloth is not a grid
-/// the stencil is worth it for (each family costs a pass over all
-/// vertices).
-pub(crate) const MAX_FAMILIES: usize = 8;
+mod kernels;
+pub(crate) mod pbd;
 
-/// No spring of this family starts at the vertex (its kind's slot).
-pub(super) const NONE: u8 = 3;
-
-/// A cloth's springs as offset families (see the [module docs](self)), or
-/// nothing when they do not form a stencil.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Stencil {
-    /// Unique per built stencil (clones share it: same contents), so a
-    /// workspace can tell that its coefficients are this stencil's.
-    pub(super) id: u64,
-    /// The families' offsets `o`, increasing.
-    pub(super) offsets: Vec<usize>,
-    /// Per family, per vertex `a`: the kind of the spring `(a, a + o)`
-    /// (its index in [`SpringKind::ALL`](crate::model::SpringKind::ALL)),
-    /// or [`NONE`]; `n` entries per family.
-    pub(super) kinds: Vec<u8>,
-    /// Per family, per vertex: that spring's rest length (0 for none).
-    pub(super) rest: Vec<f32>,
-}
-
-/// Equal contents (the [`id`](Stencil::id) aside).
-impl PartialEq for Stencil {
-    fn eq(&self, other: &Self) -> bool {
-        (&self.offsets, &self.kinds, &self.rest) == (&other.offsets, &other.kinds, &other.rest)
-    }
-}
-
-impl Stencil {
-    /// The families of `springs` over `n` vertices, or `None` when there
-    /// are more than [`MAX_FAMILIES`] offsets or the families are less than
-    /// half full (most of the dense passes would be wasted).
-    pub(crate) fn build(n: usize, springs: &[Spring]) -> Option<Self> {
-        if springs.is_empty() {
-            return None;
-        }
-        let mut by_offset: BTreeMap<usize, Vec<&Spring>> = BTreeMap::new();
-        for s in springs {
-            let o = (s.b - s.a) as usize;
-            if !by_offset.contains_key(&o) && by_offset.len() == MAX_FAMILIES {
-                return None;
-            }
-            by_offset.entry(o).or_default().push(s);
-        }
-        let families = by_offset.len();
-        if 2 * springs.len() < families * n {
-            return None;
-        }
-        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
-        let mut stencil = Self {
-            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
-            offsets: by_offset.keys().copied().collect(),
-            kinds: vec![NONE; families * n],
-            rest: vec![0.0; families * n],
-        };
-        for (f, family) in by_offset.values().enumerate() {
-            for s in family {
-                let at = f * n + s.a as usize;
-                stencil.kinds[at] = s.kind as u8;
-                stencil.rest[at] = s.rest_length;
-            }
-        }
-        Some(stencil)
-    }
-
-    /// How many families.
-    pub(crate) fn families(&self) -> usize {
-        self.offsets.len()
-    }
-
-    /// The largest offset.
-    pub(super) fn max_offset(&self) -> usize {
-        self.offsets.last().copied().unwrap_or(0)
-    }
-}
+use kernels::{Chunk, gradient_run, springs, sums, vertices};
+pub(crate) use kernels::{Ends, Terms, padded_rows, to_soa};
 
 /// What one vertex pass does with each vertex's step `g/diag`.
 #[derive(Clone, Copy, Debug)]
@@ -129,7 +53,7 @@ pub(crate) enum Update {
     /// Plain Jacobi: `x ← x − step`.
     Jacobi,
     /// Chebyshev: `x ← ω(x − step − x_prev) + x_prev`, `x_prev ← x`;
-    /// `measure` sums the squared steps (for [`Rho::Auto`](super::Rho)).
+    /// `measure` sums the squared steps (for [`Rho::Auto`](crate::solver::chebyshev::Rho)).
     Chebyshev { omega: f32, measure: bool },
 }
 
@@ -174,9 +98,6 @@ pub(crate) struct StencilWorkspace {
     /// `[g_x…, g_y…, g_z…]`: the gradient at the final iterate.
     grad: Vec<f32>,
 }
-
-/// Vertices per block of the vertex pass: its sums live in stack arrays.
-const BLOCK: usize = 128;
 
 impl StencilWorkspace {
     /// Loads a step: the springs' coefficients `[α, β] = [k, kL]` for the
@@ -411,11 +332,11 @@ impl StencilWorkspace {
 /// A raw pointer to one of the workspace's arrays, shared by the items of
 /// [`StencilWorkspace::iterate`]'s phases.
 #[derive(Clone, Copy)]
-pub(super) struct Ptr(pub(super) *mut f32);
+pub(crate) struct Ptr(pub(crate) *mut f32);
 #[derive(Clone, Copy)]
 struct Ptr64(*mut f64);
 #[derive(Clone, Copy)]
-pub(super) struct PtrV(pub(super) *mut Vec3A);
+pub(crate) struct PtrV(pub(crate) *mut Vec3A);
 
 // SAFETY: the items that share them write disjoint chunks, and read only
 // what no item of their phase writes (see `Run`).
@@ -429,7 +350,7 @@ unsafe impl Sync for PtrV {}
 impl Ptr {
     /// # Safety
     /// `at + len` within the array, and nothing writes it meanwhile.
-    pub(super) unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
+    pub(crate) unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
         unsafe { std::slice::from_raw_parts(self.0.add(at), len) }
     }
 
@@ -437,7 +358,7 @@ impl Ptr {
     /// `at + len` within the array, and nothing else reads or writes it
     /// meanwhile.
     #[allow(clippy::mut_from_ref)]
-    pub(super) unsafe fn slice_mut<'a>(self, at: usize, len: usize) -> &'a mut [f32] {
+    pub(crate) unsafe fn slice_mut<'a>(self, at: usize, len: usize) -> &'a mut [f32] {
         unsafe { std::slice::from_raw_parts_mut(self.0.add(at), len) }
     }
 }
@@ -645,355 +566,5 @@ impl Run<'_> {
     }
 }
 
-/// Sizes `buffer` as `rows` rows of `pad` zeros then `n` values, and
-/// zeroes the pads (the vertex passes read a family's terms at `i − o`);
-/// the spring passes write the rest.
-pub(super) fn padded_rows(buffer: &mut Vec<f32>, rows: usize, n: usize, pad: usize) {
-    let stride = pad + n;
-    buffer.resize(rows * stride, 0.0);
-    for row in buffer.chunks_mut(stride) {
-        row[..pad].fill(0.0);
-    }
-}
-
-/// `[x…, y…, z…]` from `v`.
-pub(super) fn to_soa(v: &[Vec3A], out: &mut Vec<f32>) {
-    out.clear();
-    out.extend(v.iter().map(|p| p.x));
-    out.extend(v.iter().map(|p| p.y));
-    out.extend(v.iter().map(|p| p.z));
-}
-
-/// The families' terms as the vertex pass reads them.
-pub(super) struct Terms<'a> {
-    pub(super) data: &'a [f32],
-    pub(super) stride: usize,
-    pub(super) pad: usize,
-    pub(super) offsets: &'a [usize],
-}
-
-impl Terms<'_> {
-    /// Family `f`'s component-`c` terms from vertex `start`: the ones the
-    /// vertices start (`a`) and the ones they end (`b`, at `i − o`), `len`
-    /// each.
-    #[inline(always)]
-    pub(super) fn runs(&self, f: usize, c: usize, start: usize, len: usize) -> (&[f32], &[f32]) {
-        let row = &self.data[(3 * f + c) * self.stride..(3 * f + c + 1) * self.stride];
-        let i = self.pad + start;
-        let o = self.offsets[f];
-        (&row[i..i + len], &row[i - o..i - o + len])
-    }
-}
-
-/// One vertex chunk's shared inputs.
-struct Chunk<'a> {
-    start: usize,
-    terms: &'a Terms<'a>,
-    target: [&'a [f32]; 3],
-    data: &'a VertexData<'a>,
-}
-
-pub(super) type Ends<'a> = [(&'a [f32], &'a [f32]); 3];
-
-at_level! {
-    /// The spring kernel at `level` (see [`springs_kernel`]).
-    fn springs(ends: Ends<'_>, coeffs: (&[f32], &[f32]), out: [&mut [f32]; 3]) => springs_kernel
-}
-
-/// `t = d·(α − β/l)` for each spring of a run, `d = x_a − x_b`, `l = ‖d‖`
-/// (0 for a zero length): the general pass's operations in its order.
-#[inline(always)]
-fn springs_kernel(ends: Ends<'_>, (alpha, beta): (&[f32], &[f32]), out: [&mut [f32]; 3]) {
-    let [tx, ty, tz] = out;
-    let m = tx.len();
-    let [(ax, bx), (ay, by), (az, bz)] = ends;
-    let (ax, bx, ay, by, az, bz) = (&ax[..m], &bx[..m], &ay[..m], &by[..m], &az[..m], &bz[..m]);
-    let (alpha, beta, ty, tz) = (&alpha[..m], &beta[..m], &mut ty[..m], &mut tz[..m]);
-    for i in 0..m {
-        let (dx, dy, dz) = (ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]);
-        let l2 = (dx * dx + dy * dy) + dz * dz;
-        // Computed for every lane, then selected: no branch in the loop.
-        let raw = alpha[i] - beta[i] / l2.sqrt();
-        let scale = if l2 > 0.0 { raw } else { 0.0 };
-        tx[i] = dx * scale;
-        ty[i] = dy * scale;
-        tz[i] = dz * scale;
-    }
-}
-
-at_level! {
-    /// The vertex kernel at `level` (see [`vertices_by_families`]).
-    fn vertices(
-        chunk: &Chunk<'_>,
-        x: [&mut [f32]; 3],
-        prev: [&mut [f32]; 3],
-        update: Update,
-    ) -> f64 => vertices_by_families
-}
-
-/// [`vertices_fused`] for the stencil's number of families (a constant in
-/// each copy, so its sum unrolls), or [`vertices_blocked`] where it does
-/// not apply.
-#[inline(always)]
-fn vertices_by_families(
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    let measure = matches!(update, Update::Chebyshev { measure: true, .. });
-    if !chunk.data.spheres.is_empty() || measure {
-        return vertices_blocked(chunk, x, prev, update);
-    }
-    match chunk.terms.offsets.len() {
-        1 => vertices_fused::<1>(chunk, x, prev, update),
-        2 => vertices_fused::<2>(chunk, x, prev, update),
-        3 => vertices_fused::<3>(chunk, x, prev, update),
-        4 => vertices_fused::<4>(chunk, x, prev, update),
-        5 => vertices_fused::<5>(chunk, x, prev, update),
-        6 => vertices_fused::<6>(chunk, x, prev, update),
-        7 => vertices_fused::<7>(chunk, x, prev, update),
-        _ => vertices_fused::<MAX_FAMILIES>(chunk, x, prev, update),
-    }
-}
-
-/// One chunk of the vertex pass without penalty contacts or measured
-/// steps (the lab's): per component one loop, each vertex's `F` family
-/// terms summed, its gradient, step and update — the same operations in
-/// the same order as [`vertices_blocked`], so the same bits.
-#[inline(always)]
-fn vertices_fused<const F: usize>(
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    let data = chunk.data;
-    let (len, at) = (x[0].len(), chunk.start);
-    let (mass, inv) = (&data.mass_term[at..at + len], &data.inv_diag[at..at + len]);
-    for (c, (xc, pc)) in x.into_iter().zip(prev).enumerate() {
-        let runs: [(&[f32], &[f32]); F] = std::array::from_fn(|f| chunk.terms.runs(f, c, at, len));
-        let starts: [&[f32]; F] = std::array::from_fn(|f| &runs[f].0[..len]);
-        let ends: [&[f32]; F] = std::array::from_fn(|f| &runs[f].1[..len]);
-        let vertex = Vertices {
-            starts: &starts,
-            ends: &ends,
-            target: &chunk.target[c][at..at + len],
-            mass,
-            inv,
-        };
-        match update {
-            Update::Jacobi => jacobi_update(xc, &vertex),
-            Update::Chebyshev { omega, .. } => chebyshev_update(xc, pc, &vertex, omega),
-        }
-    }
-    0.0
-}
-
-/// What a chunk's update reads, per vertex (one component).
-struct Vertices<'a, const F: usize> {
-    /// Per family, the terms the vertices start and the ones they end.
-    starts: &'a [&'a [f32]; F],
-    ends: &'a [&'a [f32]; F],
-    target: &'a [f32],
-    /// `m/dt²`.
-    mass: &'a [f32],
-    /// `1/diag`.
-    inv: &'a [f32],
-}
-
-impl<const F: usize> Vertices<'_, F> {
-    /// Vertex `i`'s diagonal-Newton step `g/diag` at position `x`, with
-    /// `g = Σ (start − end) + m/dt²·(x − target)` summed in family order.
-    #[inline(always)]
-    fn step(&self, i: usize, x: f32) -> f32 {
-        let mut sum = self.starts[0][i] - self.ends[0][i];
-        for f in 1..F {
-            sum += self.starts[f][i] - self.ends[f][i];
-        }
-        (sum + (x - self.target[i]) * self.mass[i]) * self.inv[i]
-    }
-}
-
-// The two updates are functions of their own with the positions (and the
-// previous iterate) as `&mut` arguments: the compiler then knows that
-// nothing else they read overlaps them, and vectorises the loop without
-// run-time overlap checks (with those, it would not: too many).
-
-/// `x ← x − step`, elementwise.
-#[inline(always)]
-fn jacobi_update<const F: usize>(x: &mut [f32], v: &Vertices<'_, F>) {
-    for (i, xi) in x.iter_mut().enumerate() {
-        *xi -= v.step(i, *xi);
-    }
-}
-
-/// `prev ← ω(x − step − prev) + prev`, elementwise: the next iterate over
-/// the one before the current (the pass then swaps the two buffers, so one
-/// store per vertex instead of two).
-#[inline(always)]
-fn chebyshev_update<const F: usize>(
-    x: &mut [f32],
-    prev: &mut [f32],
-    v: &Vertices<'_, F>,
-    omega: f32,
-) {
-    let prev = &mut prev[..x.len()];
-    for i in 0..x.len() {
-        let x_hat = x[i] - v.step(i, x[i]);
-        let before = prev[i];
-        prev[i] = omega * (x_hat - before) + before;
-    }
-}
-
-/// One chunk of the vertex pass, in blocks of [`BLOCK`] vertices: per
-/// component, the families' terms summed in family order and the gradient
-/// `m/dt²(x − target) + Σ`; penalty contacts (per vertex, for the few in
-/// contact); then the step `g/diag` and the update.
-#[inline(always)]
-fn vertices_blocked(
-    chunk: &Chunk<'_>,
-    x: [&mut [f32]; 3],
-    prev: [&mut [f32]; 3],
-    update: Update,
-) -> f64 {
-    let data = chunk.data;
-    let len = x[0].len();
-    let mut measured = 0.0f64;
-    let mut grad = [[0.0f32; BLOCK]; 3];
-    let mut inv = [0.0f32; BLOCK];
-    let [x0, x1, x2] = x;
-    let xs = [x0, x1, x2];
-    let [p0, p1, p2] = prev;
-    let prevs = [p0, p1, p2];
-    for b in (0..len).step_by(BLOCK) {
-        let bl = BLOCK.min(len - b);
-        let at = chunk.start + b;
-        let (mass, inv_diag) = (&data.mass_term[at..at + bl], &data.inv_diag[at..at + bl]);
-        for c in 0..3 {
-            let (xc, tc) = (&xs[c][b..b + bl], &chunk.target[c][at..at + bl]);
-            gradient_run(chunk.terms, c, at, &mut grad[c][..bl], (xc, tc, mass));
-        }
-        // `g = (x − target)·m + Σ` in the line above is `Σ + (x − target)·m`:
-        // the same value (addition commutes bitwise).
-        inv[..bl].copy_from_slice(inv_diag);
-        if !data.spheres.is_empty() {
-            for j in 0..bl {
-                let i = at + j;
-                if data.pinned[i] {
-                    continue;
-                }
-                let xi = Vec3A::new(xs[0][b + j], xs[1][b + j], xs[2][b + j]);
-                let mut diag = data.base_diag[i];
-                let mut hit = false;
-                for sphere in data.spheres {
-                    if let Some(contact) = sphere.contact(xi) {
-                        for (c, f) in contact.force.to_array().into_iter().enumerate() {
-                            grad[c][j] -= f;
-                        }
-                        diag += sphere.stiffness;
-                        hit = true;
-                    }
-                }
-                if hit {
-                    inv[j] = 1.0 / diag;
-                }
-            }
-        }
-        let inv = &inv[..bl];
-        if let Update::Chebyshev { measure: true, .. } = update {
-            let mut squares = [0.0f32; BLOCK];
-            let sq = &mut squares[..bl];
-            for (c, g) in grad.iter().enumerate() {
-                for j in 0..bl {
-                    let s = g[j] * inv[j];
-                    sq[j] = if c == 0 { s * s } else { sq[j] + s * s };
-                }
-            }
-            measured += sq.iter().map(|&s| f64::from(s)).sum::<f64>();
-        }
-        for c in 0..3 {
-            let (g, xc) = (&grad[c][..bl], &mut xs[c][b..b + bl]);
-            match update {
-                Update::Jacobi => {
-                    for i in 0..bl {
-                        xc[i] -= g[i] * inv[i];
-                    }
-                }
-                Update::Chebyshev { omega, .. } => {
-                    let pc = &mut prevs[c][b..b + bl];
-                    // As `chebyshev_update`: the buffers swap after the pass.
-                    for i in 0..bl {
-                        let x_hat = xc[i] - g[i] * inv[i];
-                        let before = pc[i];
-                        pc[i] = omega * (x_hat - before) + before;
-                    }
-                }
-            }
-        }
-    }
-    measured
-}
-
-/// Component `c` of the gradient of the vertices from `at` (`g.len()` of
-/// them): `g = Σ_f (start_f − end_f) + (x − target)·m`, the families
-/// summed in order, from `x`, `target` and `m/dt²` of those vertices.
-#[inline(always)]
-fn gradient_run(
-    terms: &Terms<'_>,
-    c: usize,
-    at: usize,
-    g: &mut [f32],
-    (x, target, mass): (&[f32], &[f32], &[f32]),
-) {
-    let len = g.len();
-    term_sums(terms, c, at, g);
-    let (x, target, mass) = (&x[..len], &target[..len], &mass[..len]);
-    for i in 0..len {
-        g[i] += (x[i] - target[i]) * mass[i];
-    }
-}
-
-at_level! {
-    /// [`sums_kernel`] at `level`.
-    fn sums(terms: &Terms<'_>, start: usize, out: &mut [Vec3A]) => sums_kernel
-}
-
-/// `Σ_f (start_f − end_f)` of the vertices from `start` (`out.len()` of
-/// them), in blocks of [`BLOCK`].
-#[inline(always)]
-fn sums_kernel(terms: &Terms<'_>, start: usize, out: &mut [Vec3A]) {
-    let mut block = [[0.0f32; BLOCK]; 3];
-    for (b, out) in out.chunks_mut(BLOCK).enumerate() {
-        let (at, bl) = (start + b * BLOCK, out.len());
-        for (comp, g) in block.iter_mut().enumerate() {
-            term_sums(terms, comp, at, &mut g[..bl]);
-        }
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = Vec3A::new(block[0][i], block[1][i], block[2][i]);
-        }
-    }
-}
-
-/// Component `c` of `Σ_f (start_f − end_f)` for the vertices from `at`
-/// (`g.len()` of them), the families summed in order.
-#[inline(always)]
-fn term_sums(terms: &Terms<'_>, c: usize, at: usize, g: &mut [f32]) {
-    let len = g.len();
-    for f in 0..terms.offsets.len() {
-        let (ta, tb) = terms.runs(f, c, at, len);
-        if f == 0 {
-            for i in 0..len {
-                g[i] = ta[i] - tb[i];
-            }
-        } else {
-            for i in 0..len {
-                g[i] += ta[i] - tb[i];
-            }
-        }
-    }
-}
-
 #[cfg(test)]
-#[path = "stencil_tests.rs"]
 mod tests;

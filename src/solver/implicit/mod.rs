@@ -27,33 +27,16 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::kernels::{for_chunks, for_chunks2, spring_terms, stiffness_coeffs};
-use super::stencil::{StencilWorkspace, Update, VertexData};
+pub use super::chebyshev::{Rho, rho_from_update_norms};
+use super::chebyshev::{blend, chebyshev_omega, validate_chebyshev};
+use super::engine::kernels::{PaddedRows, RowGather, for_chunks, for_chunks2};
+use super::engine::springs::{spring_terms, stiffness_coeffs};
+use super::engine::stencil::{StencilWorkspace, Update, VertexData};
 use super::{
-    ConvergenceSums, LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
+    ConvergenceSums, LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport,
 };
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
-
-/// The spectral radius `ρ` that Chebyshev acceleration assumes.
-#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
-#[reflect(Debug, PartialEq, Default)]
-pub enum Rho {
-    /// A fixed value in `(0, 1)` (the lab: 0.995).
-    Fixed(f32),
-    /// Estimated each step: the first `S = clamp(K/4, 2, 8)` iterations are
-    /// plain Jacobi, and `ρ` is the geometric mean decay of their update
-    /// norms `‖x_{k+1} − x_k‖` over the second half of them (Wang 2015
-    /// delays acceleration for the same reason); Chebyshev then runs with it.
-    Auto,
-}
-
-impl Default for Rho {
-    /// The lab's fixed `ρ = 0.995`.
-    fn default() -> Self {
-        Self::Fixed(LAB_RHO)
-    }
-}
 
 /// Steps a cloth by implicit Euler with the lab's diagonal-Hessian Newton
 /// (Jacobi) iteration, optionally Chebyshev-accelerated (see the module
@@ -126,7 +109,7 @@ impl Method for ImplicitSolver {
     /// the state is unchanged.
     ///
     /// A cloth whose springs form a stencil runs both passes on the
-    /// structure-of-arrays kernels of `solver::stencil` (unless
+    /// structure-of-arrays kernels of `solver::engine::stencil` (unless
     /// [`StepParams::stencil`] is off); the rest of this describes the
     /// general kernels.
     ///
@@ -170,16 +153,9 @@ impl Method for ImplicitSolver {
             // read.
             ws.gather.terms.clear();
             ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
-            ws.gather.row_bytes.clear();
-            let bytes = std::mem::size_of::<Vec3A>() as u32;
-            // (Offsets past u32 would take 268 million springs: such a cloth
-            // runs the unpadded gathers.)
-            if let Some(rows) = adjacency.padded()
-                && springs.len() < (u32::MAX / bytes) as usize
-            {
-                ws.gather
-                    .row_bytes
-                    .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * bytes))));
+            ws.gather.rows.clear();
+            if let Some(rows) = adjacency.padded() {
+                ws.gather.rows.fill::<Vec3A>(rows, springs.len() + 1);
             }
         }
         let ClothState {
@@ -413,7 +389,7 @@ fn general_vertex_pass(
                     let x_hat = *xi - step;
                     let before = prev[j];
                     prev[j] = *xi;
-                    *xi = omega * (x_hat - before) + before;
+                    *xi = blend(omega, x_hat, before);
                     if measure {
                         update += f64::from(step.length_squared());
                     }
@@ -460,10 +436,10 @@ struct Gather {
     inv_diag: Vec<f32>,
     /// `m/dt² + Σk`, to which penalty contacts add their stiffness.
     base_diag: Vec<f32>,
-    /// The padded rows as byte offsets into `terms` (index × 16), filled
-    /// per step from the model's: the gathers' addresses without a shift
-    /// each (the lab step ×0.95). Empty without padded rows.
-    row_bytes: Vec<[[u32; 4]; 2]>,
+    /// The padded rows as byte offsets into `terms`, filled per step from
+    /// the model's: the gathers' addresses without a shift each. Empty
+    /// without padded rows.
+    rows: PaddedRows,
 }
 
 impl ImplicitWorkspace {
@@ -496,6 +472,8 @@ impl ImplicitWorkspace {
 /// What one iteration's vertex pass needs, shared by every chunk.
 struct VertexPass<'a> {
     data: &'a Gather,
+    /// The padded gathers over `data.terms`, when the model has padded rows.
+    rows: Option<RowGather<'a, Vec3A>>,
     adjacency: &'a Adjacency,
     pinned: &'a [bool],
     spheres: &'a [PenaltySphere],
@@ -504,9 +482,9 @@ struct VertexPass<'a> {
 impl<'a> VertexPass<'a> {
     fn new(data: &'a Gather, model: &'a ClothModel, spheres: &'a [PenaltySphere]) -> Self {
         let adjacency = model.topology().adjacency();
-        // What makes the padded gathers' unchecked reads sound.
-        assert!(data.terms.len() > model.topology().springs().len());
         Self {
+            rows: (!data.rows.is_empty())
+                .then(|| data.rows.gather(0..data.rows.len(), &data.terms)),
             data,
             adjacency,
             pinned: model.pinned(),
@@ -524,7 +502,7 @@ impl<'a> VertexPass<'a> {
             target: &d.target[range.clone()],
             mass_term: &d.mass_term[range.clone()],
             inv_diag: &d.inv_diag[range.clone()],
-            rows: (!d.row_bytes.is_empty()).then(|| &d.row_bytes[range]),
+            rows: (!d.rows.is_empty()).then(|| d.rows.gather(range, &d.terms)),
         }
     }
 
@@ -533,10 +511,12 @@ impl<'a> VertexPass<'a> {
     /// is not zeroed, but its inverse diagonal is 0).
     #[inline(always)]
     fn gradient(&self, i: usize, xi: Vec3A) -> (Vec3A, f32) {
-        let springs = match self.data.row_bytes.get(i) {
+        let springs = match &self.rows {
             // Fixed length, summed as a tree: short chains of additions.
-            // SAFETY: as in `ChunkPass::each`.
-            Some(row) => unsafe { padded_sum_bytes(row, &self.data.terms) },
+            Some(rows) => {
+                let (plus, minus) = rows.sums(i, |t| *t, |t| *t);
+                plus - minus
+            }
             None => {
                 let (starts, ends) = self.adjacency.by_side(i);
                 let mut plus = Vec3A::ZERO;
@@ -575,8 +555,8 @@ struct ChunkPass<'a> {
     target: &'a [Vec3A],
     mass_term: &'a [f32],
     inv_diag: &'a [f32],
-    /// The chunk's padded rows as byte offsets (`Gather::row_bytes`).
-    rows: Option<&'a [[[u32; 4]; 2]]>,
+    /// The chunk's padded gathers (`Gather::rows`).
+    rows: Option<RowGather<'a, Vec3A>>,
 }
 
 impl ChunkPass<'_> {
@@ -589,19 +569,16 @@ impl ChunkPass<'_> {
     fn each(&self, x: &mut [Vec3A], mut update: impl FnMut(usize, &mut Vec3A, Vec3A)) {
         match self.rows {
             Some(rows) if self.pass.spheres.is_empty() => {
-                let terms = &self.pass.data.terms[..];
                 let n = x.len();
                 let (rows, target, mass, inv) = (
-                    &rows[..n],
+                    rows.first(n),
                     &self.target[..n],
                     &self.mass_term[..n],
                     &self.inv_diag[..n],
                 );
                 for j in 0..n {
-                    // SAFETY: the rows are this step's model's padded rows times
-                    // 16, and `terms` has one more entry than its springs
-                    // (asserted in `VertexPass::new`).
-                    let springs = unsafe { padded_sum_bytes(&rows[j], terms) };
+                    let (plus, minus) = rows.sums(j, |t| *t, |t| *t);
+                    let springs = plus - minus;
                     let g = (x[j] - target[j]) * mass[j] + springs;
                     update(j, &mut x[j], g * inv[j]);
                 }
@@ -614,65 +591,4 @@ impl ChunkPass<'_> {
             }
         }
     }
-}
-
-/// A vertex's padded gather of the spring terms, over its row as byte
-/// offsets (`index × 16`): its start springs' terms minus its end springs'
-/// terms, each summed as a tree (short chains of additions).
-///
-/// # Safety
-///
-/// Every offset of `row` is `16·e` for an `e` below `terms.len()`.
-#[inline(always)]
-unsafe fn padded_sum_bytes(row: &[[u32; 4]; 2], terms: &[Vec3A]) -> Vec3A {
-    debug_assert!(
-        row.iter()
-            .flatten()
-            .all(|&b| (b as usize) < 16 * terms.len())
-    );
-    let base = terms.as_ptr().cast::<u8>();
-    // SAFETY: in bounds by the caller's contract; 16-byte aligned, as
-    // `terms` is.
-    let t = |b: u32| unsafe { *base.add(b as usize).cast::<Vec3A>() };
-    let [p, m] = row;
-    ((t(p[0]) + t(p[1])) + (t(p[2]) + t(p[3]))) - ((t(m[0]) + t(m[1])) + (t(m[2]) + t(m[3])))
-}
-
-/// Checks an iteration count and a Chebyshev setting (shared by every
-/// Chebyshev-accelerated method).
-pub(crate) fn validate_chebyshev(
-    iterations: u32,
-    chebyshev: Option<Rho>,
-) -> Result<(), ParamError> {
-    if iterations == 0 {
-        return Err(ParamError::Iterations);
-    }
-    if let Some(Rho::Fixed(rho)) = chebyshev
-        && !(rho > 0.0 && rho < 1.0)
-    {
-        return Err(ParamError::Rho(rho));
-    }
-    Ok(())
-}
-
-/// Chebyshev's weight for iteration `k` when acceleration starts after
-/// `delay` plain iterations: `ω₁ = 1`, `ω₂ = 2/(2 − ρ²)`,
-/// `ω_{k+1} = 4/(4 − ρ²ω_k)` (Wang 2015), from the previous `omega`.
-pub(crate) fn chebyshev_omega(k: u32, delay: u32, rho: f32, omega: f32) -> f32 {
-    match k.checked_sub(delay) {
-        None | Some(0) => 1.0,
-        Some(1) => 2.0 / (2.0 - rho * rho),
-        _ => 4.0 / (4.0 - rho * rho * omega),
-    }
-}
-
-/// `ρ` from successive Jacobi update norms `‖x_{k+1} − x_k‖`: their
-/// geometric mean decay over the second half, clamped to `[0.5, 0.9999]`
-/// (0.9 when there are too few). Used by [`Rho::Auto`].
-pub fn rho_from_update_norms(norms: &[f64]) -> f32 {
-    let (lo, hi) = (norms.len() / 2, norms.len().saturating_sub(1));
-    if hi <= lo || norms[lo] <= 0.0 || !norms[hi].is_finite() {
-        return 0.9;
-    }
-    ((norms[hi] / norms[lo]).powf(1.0 / (hi - lo) as f64) as f32).clamp(0.5, 0.9999)
 }
