@@ -122,8 +122,8 @@ impl Plugin for ClothCorePlugin {
                 (
                     // Skipped unless a cloth's entity moved: under Bevy's
                     // multi-threaded executor a system that runs costs a
-                    // thread handoff (about 45 µs on the perf page's
-                    // machine), a condition that fails costs none.
+                    // thread handoff, a condition that fails costs none
+                    // (`docs/measurements.md`).
                     follow_anchors.run_if(any_match_filter::<(With<Cloth>, Moved)>),
                     super::attach::follow_attached
                         .run_if(any_with_component::<super::ClothAttachments>),

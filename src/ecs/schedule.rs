@@ -14,10 +14,10 @@ use bevy::prelude::*;
 /// Its executor is single-threaded (as avian runs its `PhysicsSchedule`):
 /// the systems run one after another on one thread, and the heavy ones
 /// spread the cloths over Bevy's compute task pool themselves. Bevy's
-/// multi-threaded executor hands every system to another thread, which on
-/// the perf page's 2-core machine costs about 45 µs per system (measured
-/// with an empty one), more than most of these systems' work. What one lab
-/// cloth adds to a frame is in `docs/perf.md`, "The frame".
+/// multi-threaded executor hands every system to another thread, which
+/// costs more than most of these systems' work. What that costs, and what
+/// one lab cloth adds to a frame, is in `docs/measurements.md` and
+/// `docs/perf.md`.
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ClothSchedule;
 

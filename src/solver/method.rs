@@ -19,6 +19,19 @@ pub const LAB_ITERATIONS: u32 = 32;
 /// The lab's Chebyshev spectral radius, `ρ = 0.995`.
 pub const LAB_RHO: f32 = 0.995;
 
+/// What a step reads: the cloth, the step's parameters and the penalty
+/// spheres acting inside it. [`Method::advance`] takes it whole.
+#[derive(Clone, Copy, Debug)]
+pub struct StepInput<'a> {
+    /// The cloth's topology, masses and pins.
+    pub model: &'a ClothModel,
+    /// The time step, gravity, stiffness, damping and kernel choices.
+    pub params: &'a StepParams,
+    /// Penalty spheres acting inside the step (contact distance includes
+    /// the cloth's particle radius).
+    pub spheres: &'a [PenaltySphere],
+}
+
 /// A simulation method: settings that advance a [`ClothState`] by one step
 /// with a reusable workspace. Pure numerics, no ECS.
 pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
@@ -85,17 +98,21 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
         self.validate_params(params)?;
         self.validate()?;
         check_state(model, state)?;
-        self.advance(model, state, params, spheres, workspace)
+        let input = StepInput {
+            model,
+            params,
+            spheres,
+        };
+        self.advance(input, state, workspace)
     }
 
-    /// [`step`](Self::step) without its checks: what each method implements.
-    /// Callers use `step`.
+    /// [`step`](Self::step) without its checks: what each method implements,
+    /// reading `input` and advancing `state` with its `workspace`. Callers
+    /// use `step`.
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         workspace: &mut Self::Workspace,
     ) -> Result<StepReport, StepError>;
 }

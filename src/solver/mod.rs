@@ -53,7 +53,7 @@ pub use engine::simd::Simd;
 pub use measures::{
     ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective, step_error,
 };
-pub use method::{LAB_ITERATIONS, LAB_RHO, Method};
+pub use method::{LAB_ITERATIONS, LAB_RHO, Method, StepInput};
 pub(crate) use params::check_state;
 pub use params::{
     CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,

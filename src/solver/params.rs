@@ -93,7 +93,9 @@ pub struct StepParams {
     /// kernels within `f32` rounding, not bitwise: a vertex sums its
     /// springs in another order (and PBD adds the step's move to the
     /// velocity once, not per iteration). `false` runs the general
-    /// kernels, for comparison.
+    /// kernels, for comparison (the report's and the tests'; hidden from
+    /// the docs, as the engine room is).
+    #[doc(hidden)]
     pub stencil: bool,
 }
 

@@ -15,9 +15,8 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::{Method, ParamError, StepError, StepParams, StepReport};
-use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState};
+use super::{Method, ParamError, StepError, StepInput, StepReport};
+use crate::model::ClothState;
 use crate::solver::engine::springs::{spring_terms, stiffness_coeffs};
 use crate::solver::engine::stencil::StencilWorkspace;
 
@@ -43,12 +42,15 @@ impl Method for SymplecticSolver {
     /// Advances `state` by one symplectic Euler step (see the module docs).
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut SymplecticWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let h = params.dt as f32;
         let gravity = Vec3A::from(params.gravity);
         let adjacency = model.topology().adjacency();

@@ -67,12 +67,10 @@ impl SparseCholesky {
     /// implicit direct solve and the exact method: always supernodal. Their
     /// 3×3 blocks make dense supernodes, yet on small cloths faer's
     /// flop-count heuristic picks the simplicial (row-by-row) factor for
-    /// them. Measured A/B against that choice (perf page's lab cloth,
-    /// release, one thread, three rounds in turns): at 21² the direct step
-    /// 1.19 → 0.575 ms and the exact step 3.54 → 1.68 ms (2.1×); at 51² and
-    /// 101² faer already chose the supernodal factor (no change). The scalar
-    /// Laplacian of projective dynamics keeps faer's choice (simplicial is
-    /// faster there up to about 101²).
+    /// them, and the supernodal factor measured faster for these blocks at
+    /// every size (`docs/measurements.md`). The
+    /// scalar Laplacian of projective dynamics keeps faer's choice
+    /// (simplicial is faster there up to about 101²).
     pub fn for_block_hessian() -> Self {
         Self::forced(true)
     }

@@ -7,10 +7,9 @@
 //! (faer chooses the simplicial factor for its scalar Laplacian there),
 //! ten or more times a step. faer's simplicial solve runs one column after
 //! the other, each entry a scalar product with its index loaded again per
-//! column. At 21² (439 unknowns, 5189 entries below the diagonal) a pd
-//! iteration took 17.5 µs with it and takes about 8 with this, 5 of them
-//! in the solve (release probes on the perf page's machine; the CHANGELOG
-//! quotes the perf page before and after). Projective dynamics writes its
+//! column; here each entry and index is loaded once for all three (the
+//! gain is measured in `docs/measurements.md`).
+//! Projective dynamics writes its
 //! right-hand side straight into the lanes, in the factor's order
 //! (`LaneFactor::rhs_mut`), and reads the solution there.
 //!
@@ -31,8 +30,8 @@ pub(crate) type Lanes = [f64; 4];
 
 /// [`Lanes`] aligned to their size, so that no load or store of one
 /// straddles two cache lines (with `Vec`'s 16-byte alignment, how many did
-/// depended on where the allocator put it: `pd 10` at 21² took 93 or
-/// 102 µs from one workspace to the next).
+/// would depend on where the allocator put the buffer, and so would the
+/// solve's speed).
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(32))]
 struct Aligned(Lanes);
@@ -69,9 +68,8 @@ pub(crate) struct LaneFactor {
 /// in the order the substitution takes them: by level (a row or column
 /// depends only on those of lower levels), so that the independent ones
 /// of a level follow each other and the processor overlaps them, instead of
-/// waiting on each result in turn as in the factor's own order (at 21²:
-/// 109 levels of 439 unknowns; `pd 10` 167 → 130 µs). The order changes
-/// no result: each is the same sum in the same order.
+/// waiting on each result in turn as in the factor's own order. The order
+/// changes no result: each is the same sum in the same order.
 #[derive(Debug, Default)]
 struct Entries {
     /// Per position in the order: the unknown it solves, `1 / L_ii`, and
@@ -82,10 +80,8 @@ struct Entries {
     /// Per line (position in the order), its entries
     /// (`ptr[at]..ptr[at + 1]`): the byte offsets in `x` of the unknowns
     /// they read, their values, and where those are in faer's values.
-    /// (Stored as runs
-    /// of consecutive unknowns instead, which saves loading an index per
-    /// entry, the solve was slower: 13.1 against 11.8 µs per pd iteration
-    /// at 21², where the runs average 3 to 5 entries.)
+    /// (Not as runs of consecutive unknowns: the runs are short, 3 to 5
+    /// entries at 21², and that layout measured slower.)
     ptr: Vec<u32>,
     idx: Vec<u32>,
     /// The unknowns: every line and entry is one of `0..n`.
@@ -295,8 +291,8 @@ impl LaneFactor {
 
 at_level! {
     /// No lane is NaN or infinite, at `level` (without stopping early, so
-    /// that it vectorises: `iter().all` took 6 % of a pd step at 21², and
-    /// at the baseline level a third of pd's right-hand side at 21²).
+    /// that it vectorises, and at the run-time SIMD level: a short-circuit
+    /// check at the baseline was a visible part of pd's step).
     fn all_finite(x: &[Lanes]) -> bool => all_finite_kernel
 }
 

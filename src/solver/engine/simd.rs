@@ -14,13 +14,11 @@
 //! its answer).
 //!
 //! [`Simd::Auto`] (the default) runs AVX2 wherever the CPU has it, also on
-//! CPUs with AVX-512, by benchmark (`docs/perf.md`, "SIMD levels"; an Intel
-//! Xeon with AVX-512, one thread, lab cloth, Chebyshev 32, levels
-//! interleaved): 32 spring passes at 21² take 64.8 µs with SSE2, 50.6 µs
-//! with AVX2 and 74.7 µs with AVX-512; at 101² 1.74, 1.31 and 1.90 ms. The
-//! 16-lane pass spends what it saves on building its registers from
-//! 16-byte records, and 16-lane square roots and divisions are no faster
-//! per lane than 8-lane ones there. [`Simd::Avx512`] runs it on request.
+//! CPUs with AVX-512, by benchmark (`docs/perf.md`, "SIMD levels", and
+//! `docs/measurements.md`): the 16-lane pass spends what it saves on
+//! building its registers from 16-byte records, and 16-lane square roots
+//! and divisions are no faster per lane than 8-lane ones.
+//! [`Simd::Avx512`] runs it on request.
 //!
 //! Every version does the same IEEE operations in the same order on each
 //! spring (`l² = (x² + y²) + z²` without fused multiply–adds, then a
@@ -122,7 +120,9 @@ impl Simd {
     }
 
     /// Every level this CPU runs, narrowest first (always starting with
-    /// [`Simd::Baseline`]).
+    /// [`Simd::Baseline`]): what the report and the tests sweep (hidden
+    /// from the docs, as the engine room is).
+    #[doc(hidden)]
     pub fn supported() -> Vec<Simd> {
         [Simd::Baseline, Simd::Avx2, Simd::Avx512]
             .into_iter()

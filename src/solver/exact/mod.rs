@@ -38,7 +38,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
-use super::{ConvergenceSums, Method, ParamError, StepError, StepParams, StepReport};
+use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
@@ -80,9 +80,9 @@ impl ExactSolver {
     /// Newton on a budget, for stiff cloth at interactive rates: a relative
     /// gradient tolerance of 1e-5 and at most 16 Newton iterations. Named
     /// `newton`. On the lab cloth it stops after one or two iterations
-    /// where the springs are soft for the time step (about 1.2–1.8 ms per
-    /// step at 21²) and spends up to its budget only where they are stiff
-    /// (k·dt²/m ≫ 1: up to about 11 ms at k = 1e7–1e8, dt = 0.1), where
+    /// where the springs are soft for the time step and spends up to its
+    /// budget only where they are stiff (k·dt²/m ≫ 1; its cost per step is
+    /// on the perf page), where
     /// the iterative methods at their interactive settings fall short of
     /// the exact step (see the stability map).
     pub const BUDGET: Self = Self {
@@ -135,12 +135,15 @@ impl Method for ExactSolver {
     /// The report's residual is the final relative gradient norm.
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut ExactWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let config = self;
         let n = model.vertex_count();
         if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
@@ -356,7 +359,9 @@ impl core::fmt::Debug for ExactWorkspace {
 }
 
 impl ExactWorkspace {
-    /// What the last step did.
+    /// What the last step did (for the report's measurements: hidden from
+    /// the docs, as the engine room is).
+    #[doc(hidden)]
     pub fn last_report(&self) -> ExactReport {
         self.last
     }

@@ -33,7 +33,7 @@ use super::engine::kernels::{PaddedRows, RowGather, for_chunks, for_chunks2};
 use super::engine::springs::{spring_terms, stiffness_coeffs};
 use super::engine::stencil::{StencilWorkspace, Update, VertexData};
 use super::{
-    ConvergenceSums, LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport,
+    ConvergenceSums, LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepReport,
 };
 use crate::collision::PenaltySphere;
 use crate::model::{Adjacency, ClothModel, ClothState, SpringKind};
@@ -120,12 +120,15 @@ impl Method for ImplicitSolver {
     /// split in fixed chunks, run in parallel for large cloths.
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut ImplicitWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let config = self;
         let n = model.vertex_count();
         let dt = params.dt as f32;

@@ -40,8 +40,7 @@ use faer::dyn_stack::MemBuffer;
 pub use assembly::LinearSystem;
 use assembly::pattern_key;
 
-use super::{Method, ParamError, SolveError, StepError, StepParams, StepReport};
-use crate::collision::PenaltySphere;
+use super::{Method, ParamError, SolveError, StepError, StepInput, StepReport};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
 
@@ -224,12 +223,15 @@ impl Method for LinearImplicitSolver {
     /// relative residual `‖b − Av⁺‖/‖b‖`.
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut LinearWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let config = self;
         ws.prepare(model);
         let pinned = model.pinned();

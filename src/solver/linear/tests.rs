@@ -1,8 +1,9 @@
 use bevy::math::{Affine3A, DMat3, DVec3, Vec3, Vec3A};
 
 use super::*;
+use crate::collision::PenaltySphere;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
-use crate::solver::SpringStiffness;
+use crate::solver::{SpringStiffness, StepParams};
 use crate::test_rng::noise;
 
 /// The assignment's scene parameters: h = 5e-3, E = 10, gravity −9.8 y, no

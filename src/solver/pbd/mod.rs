@@ -24,9 +24,8 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepParams, StepReport};
-use crate::collision::PenaltySphere;
-use crate::model::{ClothModel, ClothState};
+use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepParams, StepReport};
+use crate::model::ClothState;
 use crate::solver::engine::kernels::{PaddedRows, Springs, spring_scales_ends};
 use crate::solver::engine::stencil::pbd::PbdStencilWorkspace;
 
@@ -84,12 +83,15 @@ impl Method for PbdSolver {
     /// used: strain limiting restores rest lengths directly.
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut PbdWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let config = self;
         let n = model.vertex_count();
         let report = StepReport {

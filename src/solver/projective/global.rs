@@ -226,9 +226,8 @@ impl ProjectiveWorkspace {
             self.values[self.diag_pos[f]] = d;
         }
         self.contact_k.clone_from(&self.wanted_k);
-        // The multigrid takes the new diagonal into its hierarchy (a new
-        // hierarchy per change cost the perf page's cloth falling onto a
-        // penalty sphere 31 instead of 11 ms per step at 201²).
+        // The multigrid takes the new diagonal into its hierarchy: building
+        // a new one per change costs far more (`docs/measurements.md`).
         if let Some((multigrid, _)) = &mut self.multigrid
             && multigrid.set_diagonal(&changes)?
         {
@@ -282,14 +281,12 @@ impl ProjectiveWorkspace {
         };
         // A simplicial factor: the right-hand side written straight into
         // its lanes, in its order, and solved there (`Solution` reads it
-        // back); through `rhs` and `solve3`'s two permuted copies, `pd 10`
-        // at 21² took 8 % longer.
+        // back), sparing `rhs` and `solve3`'s two permuted copies.
         if let Some(lanes) = cholesky.lanes() {
             let (order, b) = lanes.rhs_mut();
             match sums.filter(|_| spheres.is_empty()) {
-                // The common case on its own loop (through `parts.at`, even
-                // with this case first in it, `pd 10` at 21² took 98
-                // instead of 93 µs in release probes).
+                // The common case on its own loop: through `parts.at` the
+                // compiler keeps the general case's branches in it.
                 Some(sums) => {
                     for (b, &f) in b.iter_mut().zip(order) {
                         let (base, sum) = (base[f as usize], sums[free[f as usize] as usize]);
@@ -309,8 +306,7 @@ impl ProjectiveWorkspace {
                 }
             }
             // The early stop's estimate in a pass of its own: inside the
-            // loops above (the value read as it is written), `pd` with
-            // its preset took 68 instead of 62 µs at 21².
+            // loops above (the value read as it is written) it was slower.
             if track.on() {
                 let (order, b) = lanes.rhs_mut();
                 let free_at = |p: usize| order[p] as usize;
@@ -435,8 +431,8 @@ impl ProjectiveWorkspace {
                 }
             }
             if track {
-                // In `f32`, as `r` is (in `f64`, 2.37 instead of 2.26 ms
-                // for `pd ≤10` at 101², where it runs all 10).
+                // In `f32`, as `r` is (an `f64` sum was measurably slower
+                // where the whole budget runs).
                 let error = r * self.track.h2_over_m32[f];
                 let motion = x[i] - self.track.x_start[i];
                 estimate.add32(f, error.length_squared(), motion.length_squared());
@@ -460,8 +456,8 @@ impl ProjectiveWorkspace {
 
     /// Each vertex's spring gradient `Σ ±k_e((x_a − x_b) − d_e)` in `f64`,
     /// from the projections in `self.d`, into `self.gradient`: each
-    /// spring's term made once and added to both ends (per vertex over its
-    /// springs, each term was made twice: about 2 µs more at 21²).
+    /// spring's term made once and added to both ends (not per vertex over
+    /// its springs, which makes each term twice).
     pub(super) fn spring_gradients(&mut self, model: &ClothModel, x: &[Vec3A]) {
         self.gradient.clear();
         self.gradient.resize(x.len(), DVec3::ZERO);
@@ -505,8 +501,7 @@ impl<'a> Solution<'a> {
     /// free vertex (`free[f]`): with `CHEBYSHEV`, `ω(x̂ − x_prev) + x_prev`,
     /// the iterate moving to `x_prev`. Returns `Σ |x̂ − x|²` if `MEASURE`.
     /// Each way of storing `x̂` has its own loop, in its own order (the
-    /// lanes' order for the simplicial factor): one loop reading through
-    /// all three made `pd 10` at 21² about 9 µs slower.
+    /// lanes' order for the simplicial factor), so no loop branches on it.
     #[inline(always)]
     pub(super) fn blend<const CHEBYSHEV: bool, const MEASURE: bool>(
         &self,
@@ -529,9 +524,8 @@ impl<'a> Solution<'a> {
             }
         };
         match self {
-            // The multigrid's correction added to the iterate in `f32`.
-            // (Through an `f64` round trip, the same bits, `pd 10` at 101²
-            // took 2.8 instead of 2.3 ms.)
+            // The multigrid's correction added to the iterate in `f32` (an
+            // `f64` round trip gives the same bits, slower).
             Self::Multigrid(multigrid) => {
                 for (f, &i) in free.iter().enumerate() {
                     let i = i as usize;

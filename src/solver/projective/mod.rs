@@ -46,8 +46,7 @@
 //! iteration's coefficients), so the iteration's fixed point is the same
 //! and the `f32` cycle rounds the small `δ`, not `x`. Each iteration
 //! gains a little less than with the exact solve on stiff cloth, and costs
-//! far less: at 201², 10 iterations take 9.5 ms where the direct solve's
-//! take 59 ms (`docs/perf.md`).
+//! far less on large cloths (`docs/perf.md`).
 //!
 //! Every iteration decreases `Φ` (it is block coordinate descent on `x` and
 //! the `d_e`), so the iteration is stable at any stiffness and time step;
@@ -101,8 +100,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::chebyshev::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
-use super::{ConvergenceSums, Method, ParamError, StepError, StepParams, StepReport};
-use crate::collision::PenaltySphere;
+use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
 use crate::solver::engine::kernels::Springs;
@@ -121,8 +119,7 @@ use multigrid::{FineStencil, Multigrid};
 use early_stop::EarlyStop;
 
 /// The interactive iteration budget of projective dynamics: each iteration
-/// costs about seven of the lab's Jacobi iterations at 21² (10 take 92 µs,
-/// 32 Jacobi iterations 37.5 µs: `docs/perf.md`), and 10
+/// costs several of the lab's Jacobi iterations (`docs/perf.md`), and 10
 /// Chebyshev-accelerated ones reach the exact step within about 1e-2 on the
 /// lab's cloth (see the report). The preset stops before it at
 /// [`PD_TOLERANCE`].
@@ -130,13 +127,11 @@ pub const PD_ITERATIONS: u32 = 10;
 
 /// The preset's early stop ([`ProjectiveSolver::tolerance`]): an estimated
 /// error of 1 % of the step's motion, the per-step error the budget of
-/// [`PD_ITERATIONS`] aims at. On the perf page's swinging 21² cloth it
-/// stops after 5 iterations (estimate 0.0096; 0.0033 after all 10), in
-/// 64 µs instead of 92; where the cloth is stiff for its step, and on that
-/// cloth from 101² (one multigrid V-cycle per iteration), the estimate
-/// stays above it and the whole budget runs, the estimate costing about
-/// 3 % more. The stability map's verdicts and flags are those of the
-/// whole budget.
+/// [`PD_ITERATIONS`] aims at. A swinging lab cloth stops about halfway
+/// through the budget; where the cloth is stiff for its step, and on large
+/// cloths (one multigrid V-cycle per iteration), the estimate stays above
+/// it and the whole budget runs (the numbers: `docs/perf.md`). The
+/// stability map's verdicts and flags are those of the whole budget.
 pub const PD_TOLERANCE: f64 = 1e-2;
 
 /// The stiff-cloth setting of projective dynamics: 20 Anderson-accelerated
@@ -204,12 +199,9 @@ pub enum GlobalSolve {
 }
 
 /// [`GlobalSolve::Auto`] uses multigrid from this many free vertices (64²).
-/// Below, the direct solve is cheap (0.9 ms for 10 iterations at 51²) and
-/// exact: at 21² one V-cycle per iteration is no faster now (about 91
-/// against 93 µs in release probes; 1.7× faster before the direct solve's
-/// lanes, `lanes` module) and would leave 2 more of the stability map's 40
-/// cells wrong (k = 1e5 at dt = 0.1 and 1e6 at 0.0333, 11–12 % short of
-/// the exact drop where the criterion is 10 %).
+/// Below, the direct solve is cheap and exact, a V-cycle per iteration is
+/// no faster, and it would leave 2 more of the stability map's cells wrong
+/// (`docs/measurements.md`).
 pub const MULTIGRID_FROM: usize = 4096;
 
 /// [`GlobalSolve::Auto`]'s V-cycles per iteration.
@@ -458,12 +450,15 @@ impl Method for ProjectiveSolver {
     /// [`SolveError`] (the guard reports it as `SolveFailed`).
     fn advance(
         &self,
-        model: &ClothModel,
+        input: StepInput<'_>,
         state: &mut ClothState,
-        params: &StepParams,
-        spheres: &[PenaltySphere],
         ws: &mut ProjectiveWorkspace,
     ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+        } = input;
         let free = model.vertex_count() - model.pins().len();
         ws.prepare(model, params, self.global.cycles(free, self.anderson > 0))?;
         let n = model.vertex_count();

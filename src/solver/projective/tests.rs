@@ -1,6 +1,7 @@
 use bevy::math::{Affine3A, Vec3};
 
 use super::*;
+use crate::collision::PenaltySphere;
 use crate::model::ClothBuilder;
 use crate::solver::exact::{ExactSolver, ExactWorkspace};
 use crate::solver::{SpringStiffness, step_error};

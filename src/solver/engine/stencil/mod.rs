@@ -27,9 +27,8 @@
 //! and none is fused (Rust never contracts `a·b + c`), so **every level
 //! gives the same bits**. Written as loops rather than with `pulp`: the
 //! compiler's vectorisation of these streams is what a hand-written
-//! `f32s` kernel would be (the lab step, Chebyshev 32 at AVX2: 39.5 µs
-//! against 85.6 µs on the general kernels, `docs/perf.md`), and the loops
-//! stay readable.
+//! `f32s` kernel would be (their speed against the general kernels is in
+//! `docs/perf.md`), and the loops stay readable.
 //!
 //! [`StepParams::simd`]: crate::solver::StepParams::simd
 
@@ -214,7 +213,10 @@ impl StencilWorkspace {
         self.chunk_sums.resize(iterations * chunks, 0.0);
         let gradient = &mut gradient[..n];
         let positions = &mut positions[..n];
-        let outputs = [PtrV(gradient.as_mut_ptr()), PtrV(positions.as_mut_ptr())];
+        let outputs = [
+            SharedVec3(gradient.as_mut_ptr()),
+            SharedVec3(positions.as_mut_ptr()),
+        ];
         let run = self.run(simd, data, chebyshev, outputs);
         // Phases: spring pass k at 2k (k = 0..=iterations), vertex pass k at
         // 2k + 1, the gradient at 2·iterations + 1.
@@ -243,7 +245,7 @@ impl StencilWorkspace {
             |phase, chunk, value| {
                 let k = phase / 2;
                 // SAFETY (all three): the phases' items touch memory as
-                // [`Run`] says, and one phase runs at a time.
+                // [`PhasedIteration`] says, and one phase runs at a time.
                 unsafe {
                     if phase == phases - 1 {
                         run.gradient_chunk(iterations, chunk);
@@ -259,17 +261,17 @@ impl StencilWorkspace {
 }
 
 impl StencilWorkspace {
-    /// The [`Run`] of a step over this workspace's arrays, writing the
+    /// The [`PhasedIteration`] of a step over this workspace's arrays, writing the
     /// gradient (or sums) and positions to `[gradient, positions]`.
     fn run<'a>(
         &'a mut self,
         simd: Simd,
         data: &'a VertexData<'a>,
         chebyshev: bool,
-        [gradient, positions]: [PtrV; 2],
-    ) -> Run<'a> {
+        [gradient, positions]: [SharedVec3; 2],
+    ) -> PhasedIteration<'a> {
         let n = self.n;
-        Run {
+        PhasedIteration {
             n,
             chunks: n.div_ceil(CHUNK),
             level: simd.resolve(),
@@ -282,10 +284,13 @@ impl StencilWorkspace {
             target: [0, 1, 2].map(|c| self.target.get(c * n..(c + 1) * n).unwrap_or(&[])),
             data,
             chebyshev,
-            buffers: [Ptr(self.x.as_mut_ptr()), Ptr(self.prev.as_mut_ptr())],
-            terms: (Ptr(self.terms.as_mut_ptr()), self.terms.len()),
-            grad: Ptr(self.grad.as_mut_ptr()),
-            sums: Ptr64(self.chunk_sums.as_mut_ptr()),
+            buffers: [
+                SharedF32(self.x.as_mut_ptr()),
+                SharedF32(self.prev.as_mut_ptr()),
+            ],
+            terms: (SharedF32(self.terms.as_mut_ptr()), self.terms.len()),
+            grad: SharedF32(self.grad.as_mut_ptr()),
+            sums: SharedF64(self.chunk_sums.as_mut_ptr()),
             gradient,
             positions,
         }
@@ -307,7 +312,10 @@ impl StencilWorkspace {
             pinned: &[],
             spheres: &[],
         };
-        let outputs = [PtrV(sums.as_mut_ptr()), PtrV(std::ptr::null_mut())];
+        let outputs = [
+            SharedVec3(sums.as_mut_ptr()),
+            SharedVec3(std::ptr::null_mut()),
+        ];
         let run = self.run(simd, &none, false, outputs);
         run_phases(
             parallel_pool(parallel, n),
@@ -332,22 +340,22 @@ impl StencilWorkspace {
 /// A raw pointer to one of the workspace's arrays, shared by the items of
 /// [`StencilWorkspace::iterate`]'s phases.
 #[derive(Clone, Copy)]
-pub(crate) struct Ptr(pub(crate) *mut f32);
+pub(crate) struct SharedF32(pub(crate) *mut f32);
 #[derive(Clone, Copy)]
-struct Ptr64(*mut f64);
+struct SharedF64(*mut f64);
 #[derive(Clone, Copy)]
-pub(crate) struct PtrV(pub(crate) *mut Vec3A);
+pub(crate) struct SharedVec3(pub(crate) *mut Vec3A);
 
 // SAFETY: the items that share them write disjoint chunks, and read only
-// what no item of their phase writes (see `Run`).
-unsafe impl Send for Ptr {}
-unsafe impl Sync for Ptr {}
-unsafe impl Send for Ptr64 {}
-unsafe impl Sync for Ptr64 {}
-unsafe impl Send for PtrV {}
-unsafe impl Sync for PtrV {}
+// what no item of their phase writes (see `PhasedIteration`).
+unsafe impl Send for SharedF32 {}
+unsafe impl Sync for SharedF32 {}
+unsafe impl Send for SharedF64 {}
+unsafe impl Sync for SharedF64 {}
+unsafe impl Send for SharedVec3 {}
+unsafe impl Sync for SharedVec3 {}
 
-impl Ptr {
+impl SharedF32 {
     /// # Safety
     /// `at + len` within the array, and nothing writes it meanwhile.
     pub(crate) unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f32] {
@@ -363,9 +371,9 @@ impl Ptr {
     }
 }
 
-impl Ptr64 {
+impl SharedF64 {
     /// # Safety
-    /// As [`Ptr::slice`].
+    /// As [`SharedF32::slice`].
     unsafe fn slice<'a>(self, at: usize, len: usize) -> &'a [f64] {
         unsafe { std::slice::from_raw_parts(self.0.add(at), len) }
     }
@@ -399,7 +407,7 @@ fn decode(value: u64) -> Update {
 /// one (Chebyshev), and the sums of iteration `k`; the gradient phase reads
 /// the terms and `current(iterations)` and writes `grad`, `gradient` and
 /// `positions`. Every item writes only its own chunk's part.
-struct Run<'a> {
+struct PhasedIteration<'a> {
     n: usize,
     chunks: usize,
     level: Simd,
@@ -412,18 +420,18 @@ struct Run<'a> {
     data: &'a VertexData<'a>,
     chebyshev: bool,
     /// The positions and the previous iterate, `[x…, y…, z…]` each.
-    buffers: [Ptr; 2],
-    terms: (Ptr, usize),
-    grad: Ptr,
+    buffers: [SharedF32; 2],
+    terms: (SharedF32, usize),
+    grad: SharedF32,
     /// Per iteration and chunk, the sum of squared steps.
-    sums: Ptr64,
-    gradient: PtrV,
-    positions: PtrV,
+    sums: SharedF64,
+    gradient: SharedVec3,
+    positions: SharedVec3,
 }
 
-impl Run<'_> {
+impl PhasedIteration<'_> {
     /// The buffer that holds iterate `k` (Chebyshev's alternate).
-    fn current(&self, k: usize) -> Ptr {
+    fn current(&self, k: usize) -> SharedF32 {
         self.buffers[if self.chebyshev { k % 2 } else { 0 }]
     }
 

@@ -21,7 +21,7 @@
 
 use bevy::math::Vec3A;
 
-use super::{Ends, Ptr, PtrV, Terms, padded_rows, to_soa};
+use super::{Ends, SharedF32, SharedVec3, Terms, padded_rows, to_soa};
 use crate::model::stencil::{NONE, Stencil};
 use crate::solver::engine::kernels::{CHUNK, parallel_pool};
 use crate::solver::engine::phases::run_phases;
@@ -118,7 +118,7 @@ impl PbdStencilWorkspace {
         let len = self.first.len();
         let positions = &mut positions[..n];
         let velocities = &mut velocities[..n];
-        let run = Run {
+        let run = PhasedIteration {
             n,
             level: simd.resolve(),
             stride,
@@ -129,11 +129,11 @@ impl PbdStencilWorkspace {
             pins: &self.pins,
             x0: &self.x0,
             inv_dt,
-            x: Ptr(self.x.as_mut_ptr()),
-            first: (Ptr(self.first.as_mut_ptr()), len),
-            second: (Ptr(self.second.as_mut_ptr()), len),
-            positions: PtrV(positions.as_mut_ptr()),
-            velocities: PtrV(velocities.as_mut_ptr()),
+            x: SharedF32(self.x.as_mut_ptr()),
+            first: (SharedF32(self.first.as_mut_ptr()), len),
+            second: (SharedF32(self.second.as_mut_ptr()), len),
+            positions: SharedVec3(positions.as_mut_ptr()),
+            velocities: SharedVec3(velocities.as_mut_ptr()),
         };
         // Proposal pass k at 2k, vertex pass k at 2k + 1, the output last.
         let phases = 2 * iterations as usize + 1;
@@ -143,7 +143,7 @@ impl PbdStencilWorkspace {
             chunks,
             |_| 0,
             |phase, chunk, _| {
-                // SAFETY (all three): the items touch memory as `Run` says,
+                // SAFETY (all three): the items touch memory as `PhasedIteration` says,
                 // and one phase runs at a time.
                 unsafe {
                     if phase == phases - 1 {
@@ -163,7 +163,7 @@ impl PbdStencilWorkspace {
 /// writes the proposals; a vertex pass reads the proposals and writes `x`;
 /// the output reads `x` and writes `positions` and `velocities`. Every
 /// item writes only its own chunk's part.
-struct Run<'a> {
+struct PhasedIteration<'a> {
     n: usize,
     level: Simd,
     stride: usize,
@@ -174,14 +174,14 @@ struct Run<'a> {
     pins: &'a [usize],
     x0: &'a [f32],
     inv_dt: f32,
-    x: Ptr,
-    first: (Ptr, usize),
-    second: (Ptr, usize),
-    positions: PtrV,
-    velocities: PtrV,
+    x: SharedF32,
+    first: (SharedF32, usize),
+    second: (SharedF32, usize),
+    positions: SharedVec3,
+    velocities: SharedVec3,
 }
 
-impl Run<'_> {
+impl PhasedIteration<'_> {
     /// Chunk `c`'s first vertex and length.
     fn span(&self, c: usize) -> (usize, usize) {
         let start = c * CHUNK;
@@ -192,7 +192,7 @@ impl Run<'_> {
     ///
     /// # Safety
     /// Nothing writes it meanwhile.
-    unsafe fn read(&self, (data, len): (Ptr, usize)) -> Terms<'_> {
+    unsafe fn read(&self, (data, len): (SharedF32, usize)) -> Terms<'_> {
         Terms {
             data: unsafe { data.slice(0, len) },
             stride: self.stride,
@@ -219,7 +219,7 @@ impl Run<'_> {
                     x.slice(comp * n + start + o, m),
                 )
             };
-            let out = |(data, _): (Ptr, usize)| {
+            let out = |(data, _): (SharedF32, usize)| {
                 [0, 1, 2].map(|comp| unsafe {
                     data.slice_mut((3 * f + comp) * self.stride + self.pad + start, len)
                 })

@@ -119,9 +119,8 @@ impl Csr {
     }
 }
 
-/// `y = a · x`. Serial: with its rows split over two threads (a task-pool
-/// scope per product) `pd 10` at 201² took 9.9 ms on 2 threads against
-/// 9.4 ms on one; serial, 9.4 ms on both.
+/// `y = a · x`. Serial: the coarse levels are too small for a task-pool
+/// scope per product to pay (`docs/measurements.md`).
 pub(super) fn product(a: &Csr, x: &[Vec3A], y: &mut [Vec3A]) {
     a.apply(0..a.rows(), x, y);
 }

@@ -26,10 +26,9 @@
 //! - **a changed diagonal** (a penalty sphere's contacts, each step they
 //!   change) keeps the aggregates and prolongations: each coarse matrix
 //!   takes the Galerkin image of the change, `Pᵀ ΔS P`, and only the
-//!   coarsest factor is made again (`Multigrid::set_diagonal`). A new
-//!   hierarchy per change cost the perf page's cloth falling onto a
-//!   penalty sphere 31 ms per step at 201² (11 with the update, the same
-//!   iterations and per-step error). The
+//!   coarsest factor is made again (`Multigrid::set_diagonal`), with the
+//!   same iterations and per-step error as a new hierarchy per change, at
+//!   a fraction of its cost (`docs/measurements.md`). The
 //!   prolongations stay those of the matrix without contacts, so where a
 //!   penalty dominates the diagonal a cycle gains a little less (the
 //!   assignment's 80² cloth under its sweeping sphere: 9 of 600 steps
@@ -72,10 +71,9 @@ pub(super) const COARSEST: usize = 32;
 
 /// A coarsest level of at most this many unknowns is solved by a dense
 /// Cholesky factor, a larger one (left by stalled coarsening) by a sparse
-/// one. A dense factor of the 101² lab sheet's 10199 unknowns, which its
-/// guard's 16 substeps of a heavy sheet (1 per vertex, `k` 8000) left when
-/// the first aggregation stalled, took minutes to build and 800 MB; the
-/// sparse one costs the direct solve.
+/// one: a stalled aggregation can leave thousands of unknowns (a heavy
+/// 101² sheet under the guard's substeps once left all 10199), whose dense
+/// factor takes minutes and hundreds of megabytes.
 pub(super) const DENSE_MAX: usize = 256;
 
 /// One level above the coarsest: its matrix, smoother and transfer to the
@@ -372,9 +370,8 @@ impl Fine {
     ) {
         let p = self.op.pad;
         // From zero the finest level skips its pre-smoothing: the residual
-        // is `b` itself, one product with `S` fewer (at 201², projective
-        // dynamics' 10 iterations took 9.6 ms instead of 11.3 ms, as close
-        // to the exact step in the tests and the report's 101² scene).
+        // is `b` itself, one product with `S` fewer (as close to the exact
+        // step in the tests and the report's 101² scene).
         if zero {
             for x in &mut self.x {
                 x[p..].fill(0.0);
