@@ -13,6 +13,8 @@
 //! assignment). The sphere's path is ours (the assignment leaves it open):
 //! radius 0.1, centre (0, 0.2, 0.5·sin(t/2)) with `t` the simulated time.
 
+#[path = "cli/mod.rs"]
+mod cli;
 #[path = "common/mod.rs"]
 mod common;
 
@@ -22,7 +24,8 @@ use bevy::picking::Pickable;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
-use common::ScreenshotMode;
+use cli::{CliError, Long, Parser, Short, value};
+use common::{ScreenshotArgs, ScreenshotMode};
 
 const USAGE: &str = "usage: assignment [--method M] [--rows R] [--cols C] [--h SECONDS] \
 [--stiffness E] [--mass TOTAL] [--screenshot FILE.png --frames N]";
@@ -37,8 +40,8 @@ struct Options {
     mass: f32,
 }
 
-fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), String> {
-    let screenshot = common::screenshot_option(&mut args)?;
+fn parse(mut parser: Parser) -> Result<(Options, Option<ScreenshotMode>), CliError> {
+    let mut screenshot = ScreenshotArgs::default();
     let mut o = Options {
         method: bevy_cloth::methods::preset("linear-cg")
             .expect("a preset")
@@ -49,21 +52,18 @@ fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), Str
         stiffness: 10.0,
         mass: 0.1,
     };
-    fn value<T: std::str::FromStr>(flag: &str, v: Option<String>) -> Result<T, String> {
-        let v = v.ok_or_else(|| format!("{flag} needs a value"))?;
-        v.parse().map_err(|_| format!("{flag}: cannot parse '{v}'"))
-    }
-    let mut it = args.into_iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--method" => o.method = value::<String>(&a, it.next())?.parse()?,
-            "--rows" => o.rows = value(&a, it.next())?,
-            "--cols" => o.cols = value(&a, it.next())?,
-            "--h" | "--dt" => o.h = value(&a, it.next())?,
-            "--stiffness" | "--k" => o.stiffness = value(&a, it.next())?,
-            "--mass" => o.mass = value(&a, it.next())?,
-            "-h" | "--help" => return Err(String::new()),
-            other => return Err(format!("unknown argument '{other}'")),
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("screenshot") => screenshot.set_path(&mut parser)?,
+            Long("frames") => screenshot.set_frames(&mut parser)?,
+            Long("method") => o.method = value(&mut parser, "--method")?,
+            Long("rows") => o.rows = value(&mut parser, "--rows")?,
+            Long("cols") => o.cols = value(&mut parser, "--cols")?,
+            Long("h") | Long("dt") => o.h = value(&mut parser, "--dt")?,
+            Long("stiffness") | Long("k") => o.stiffness = value(&mut parser, "--k")?,
+            Long("mass") => o.mass = value(&mut parser, "--mass")?,
+            Long("help") | Short('h') => return Err(CliError::Help),
+            _ => return Err(arg.unexpected().into()),
         }
     }
     let params = ClothParams::default().with_stiffness(o.stiffness);
@@ -71,7 +71,7 @@ fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), Str
         .step_params(o.h)
         .validate()
         .map_err(|e| e.to_string())?;
-    Ok((o, screenshot))
+    Ok((o, screenshot.finish()))
 }
 
 /// Marks the sphere that sweeps through the cloth.
@@ -79,11 +79,10 @@ fn parse(mut args: Vec<String>) -> Result<(Options, Option<ScreenshotMode>), Str
 struct Sweeping;
 
 fn main() -> ExitCode {
-    let (options, screenshot) =
-        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
-            Ok(parsed) => parsed,
-            Err(code) => return code,
-        };
+    let (options, screenshot) = match cli::parse_args(USAGE, parse) {
+        Ok(parsed) => parsed,
+        Err(code) => return code,
+    };
     let mut app = common::windowed_app("bevy_cloth — assignment", options.h, screenshot);
     app.insert_resource(options)
         .add_systems(Startup, setup)

@@ -15,6 +15,8 @@
 //! "bevy_cloth" panel switches the flag's method (default `pd-anderson`:
 //! the light flag is stiff for its mass, where `pd` does not converge).
 
+#[path = "cli/mod.rs"]
+mod cli;
 #[path = "common/mod.rs"]
 mod common;
 
@@ -27,7 +29,8 @@ use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
-use common::ScreenshotMode;
+use cli::{CliError, Long, Parser, Short, value};
+use common::{ScreenshotArgs, ScreenshotMode};
 
 const USAGE: &str = "usage: flag [--method NAME] [--screenshot FILE.png --frames N]";
 
@@ -64,30 +67,30 @@ impl WindControls {
 #[derive(Component)]
 struct Ground;
 
-fn parse(mut args: Vec<String>) -> Result<(FlagOptions, Option<ScreenshotMode>), String> {
-    let screenshot = common::screenshot_option(&mut args)?;
+fn parse(mut parser: Parser) -> Result<(FlagOptions, Option<ScreenshotMode>), CliError> {
+    let mut screenshot = ScreenshotArgs::default();
     let mut options = FlagOptions {
         method: bevy_cloth::methods::preset("pd-anderson")
             .expect("a preset")
             .method,
     };
-    let mut it = args.into_iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--method" => options.method = it.next().ok_or("--method needs a name")?.parse()?,
-            "-h" | "--help" => return Err(String::new()),
-            other => return Err(format!("unknown argument '{other}'")),
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("screenshot") => screenshot.set_path(&mut parser)?,
+            Long("frames") => screenshot.set_frames(&mut parser)?,
+            Long("method") => options.method = value(&mut parser, "--method")?,
+            Long("help") | Short('h') => return Err(CliError::Help),
+            _ => return Err(arg.unexpected().into()),
         }
     }
-    Ok((options, screenshot))
+    Ok((options, screenshot.finish()))
 }
 
 fn main() -> ExitCode {
-    let (options, screenshot) =
-        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
-            Ok(parsed) => parsed,
-            Err(code) => return code,
-        };
+    let (options, screenshot) = match cli::parse_args(USAGE, parse) {
+        Ok(parsed) => parsed,
+        Err(code) => return code,
+    };
     let controls = WindControls {
         speed: 9.0,
         heading_degrees: 10.0,

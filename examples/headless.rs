@@ -39,8 +39,12 @@
 //! block (keeps `A` positive definite; see `SpringJacobian`); `--exact-k`
 //! gives them the assignment's exact blocks instead. `--global` chooses
 //! projective dynamics' global solve (`GlobalSolve`): `auto` (the default),
-//! `direct`, or `mg`/`mgN` for one/`N` multigrid V-cycles per iteration. `--dump` writes the final positions as CSV `i,x,y,z`. Bad arguments print
-//! the usage and exit with status 2.
+//! `direct`, or `mg`/`mgN` for one/`N` multigrid V-cycles per iteration. `--dump` writes the final positions as CSV `i,x,y,z`. `--help` prints
+//! the usage and exits with status 0; bad arguments print the usage and exit
+//! with status 2.
+
+#[path = "cli/mod.rs"]
+mod cli;
 
 use std::process::ExitCode;
 use std::time::Duration;
@@ -48,6 +52,7 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
+use cli::{CliError, Long, Parser, Short, value};
 
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
 [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] [--n N] [--rows R] \
@@ -110,46 +115,46 @@ impl Default for Options {
     }
 }
 
-fn parse<T: std::str::FromStr>(flag: &str, value: Option<String>) -> Result<T, String> {
-    let value = value.ok_or_else(|| format!("{flag} needs a value"))?;
-    value
-        .parse()
-        .map_err(|_| format!("{flag}: cannot parse '{value}'"))
-}
-
-fn parse_args(args: impl IntoIterator<Item = String>) -> Result<Options, String> {
+fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
     let mut o = Options::default();
-    let mut args = args.into_iter();
-    while let Some(flag) = args.next() {
-        match flag.as_str() {
-            "--scene" => {
-                let scene: String = parse(&flag, args.next())?;
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("scene") => {
+                let scene: String = value(&mut parser, "--scene")?;
                 o.scene = match scene.as_str() {
                     "lab" => Scene::Lab,
                     "assignment" => Scene::Assignment,
-                    _ => return Err(format!("unknown scene '{scene}' (known: lab, assignment)")),
+                    _ => {
+                        return Err(
+                            format!("unknown scene '{scene}' (known: lab, assignment)").into()
+                        );
+                    }
                 };
             }
-            "--method" => o.method = parse::<String>(&flag, args.next())?.parse()?,
-            "--n" => o.n = parse(&flag, args.next())?,
-            "--cloths" => o.cloths = parse(&flag, args.next())?,
-            "--rows" => o.rows = parse(&flag, args.next())?,
-            "--cols" => o.cols = parse(&flag, args.next())?,
-            "--steps" => o.steps = parse(&flag, args.next())?,
-            "--iterations" => o.iterations = Some(parse(&flag, args.next())?),
-            "--k" | "--stiffness" => o.k = Some(parse(&flag, args.next())?),
-            "--dt" | "--h" => o.dt = Some(parse(&flag, args.next())?),
-            "--damping" => o.damping = Some(parse(&flag, args.next())?),
-            "--mass" => o.mass = Some(parse(&flag, args.next())?),
-            "--rho" => o.rho = Some(parse(&flag, args.next())?),
-            "--sphere" => o.sphere = true,
-            "--penalty" => o.penalty = parse(&flag, args.next())?,
-            "--exact-k" => o.exact_k = true,
-            "--global" => o.global = Some(parse_global(&parse::<String>(&flag, args.next())?)?),
-            "--dump" => o.dump = Some(parse(&flag, args.next())?),
-            "--compute-threads" => o.compute_threads = Some(parse(&flag, args.next())?),
-            "-h" | "--help" => return Err(String::new()),
-            other => return Err(format!("unknown argument '{other}'")),
+            Long("method") => o.method = value(&mut parser, "--method")?,
+            Long("n") => o.n = value(&mut parser, "--n")?,
+            Long("cloths") => o.cloths = value(&mut parser, "--cloths")?,
+            Long("rows") => o.rows = value(&mut parser, "--rows")?,
+            Long("cols") => o.cols = value(&mut parser, "--cols")?,
+            Long("steps") => o.steps = value(&mut parser, "--steps")?,
+            Long("iterations") => o.iterations = Some(value(&mut parser, "--iterations")?),
+            Long("k") | Long("stiffness") => o.k = Some(value(&mut parser, "--k")?),
+            Long("dt") | Long("h") => o.dt = Some(value(&mut parser, "--dt")?),
+            Long("damping") => o.damping = Some(value(&mut parser, "--damping")?),
+            Long("mass") => o.mass = Some(value(&mut parser, "--mass")?),
+            Long("rho") => o.rho = Some(value(&mut parser, "--rho")?),
+            Long("sphere") => o.sphere = true,
+            Long("penalty") => o.penalty = value(&mut parser, "--penalty")?,
+            Long("exact-k") => o.exact_k = true,
+            Long("global") => {
+                o.global = Some(parse_global(&value::<String>(&mut parser, "--global")?)?)
+            }
+            Long("dump") => o.dump = Some(value(&mut parser, "--dump")?),
+            Long("compute-threads") => {
+                o.compute_threads = Some(value(&mut parser, "--compute-threads")?)
+            }
+            Long("help") | Short('h') => return Err(CliError::Help),
+            _ => return Err(arg.unexpected().into()),
         }
     }
     if o.iterations == Some(0) {
@@ -367,15 +372,9 @@ fn run(o: &Options) -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    let options = match parse_args(std::env::args().skip(1)) {
+    let options = match cli::parse_args(USAGE, parse_args) {
         Ok(o) => o,
-        Err(e) => {
-            if !e.is_empty() {
-                eprintln!("error: {e}");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
+        Err(code) => return code,
     };
     match run(&options) {
         Ok(()) => ExitCode::SUCCESS,

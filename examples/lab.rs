@@ -10,6 +10,8 @@
 //! on the sphere and drag to move it. Keys: space pauses, `h` steps once, `r`
 //! resets. `--screenshot` renders that many frames, saves a PNG and exits.
 
+#[path = "cli/mod.rs"]
+mod cli;
 #[path = "common/mod.rs"]
 mod common;
 
@@ -21,7 +23,8 @@ use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
 use bevy_cloth::ui::ClothResolution;
-use common::ScreenshotMode;
+use cli::{CliError, Long, Parser, Short, value};
+use common::{ScreenshotArgs, ScreenshotMode};
 
 const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] \
 [--n N] [--screenshot FILE.png --frames N]";
@@ -32,30 +35,30 @@ struct LabOptions {
     n: u32,
 }
 
-fn parse(mut args: Vec<String>) -> Result<(LabOptions, Option<ScreenshotMode>), String> {
-    let screenshot = common::screenshot_option(&mut args)?;
+fn parse(mut parser: Parser) -> Result<(LabOptions, Option<ScreenshotMode>), CliError> {
+    let mut screenshot = ScreenshotArgs::default();
     let mut options = LabOptions {
         method: bevy_cloth::methods::preset("chebyshev")
             .expect("a preset")
             .method,
         n: 21,
     };
-    let mut it = args.into_iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--method" => options.method = it.next().ok_or("--method needs a name")?.parse()?,
-            "--n" => {
-                let v = it.next().ok_or("--n needs a number")?;
-                options.n = v.parse().map_err(|_| format!("--n: cannot parse '{v}'"))?;
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("screenshot") => screenshot.set_path(&mut parser)?,
+            Long("frames") => screenshot.set_frames(&mut parser)?,
+            Long("method") => options.method = value(&mut parser, "--method")?,
+            Long("n") => {
+                options.n = value(&mut parser, "--n")?;
                 if !(2..=201).contains(&options.n) {
-                    return Err(format!("--n must lie in 2..=201, got {}", options.n));
+                    return Err(format!("--n must lie in 2..=201, got {}", options.n).into());
                 }
             }
-            "-h" | "--help" => return Err(String::new()),
-            other => return Err(format!("unknown argument '{other}'")),
+            Long("help") | Short('h') => return Err(CliError::Help),
+            _ => return Err(arg.unexpected().into()),
         }
     }
-    Ok((options, screenshot))
+    Ok((options, screenshot.finish()))
 }
 
 /// The lab's cloth at resolution `n`: 10×10 units, pinned at 0 and n − 1,
@@ -75,11 +78,10 @@ fn lab_cloth(n: u32) -> Result<ClothModel, ClothBuildError> {
 const LAB_MASS: f32 = 441.0;
 
 fn main() -> ExitCode {
-    let (options, screenshot) =
-        match common::or_usage(parse(std::env::args().skip(1).collect()), USAGE) {
-            Ok(parsed) => parsed,
-            Err(code) => return code,
-        };
+    let (options, screenshot) = match cli::parse_args(USAGE, parse) {
+        Ok(parsed) => parsed,
+        Err(code) => return code,
+    };
     let mut app = common::windowed_app("bevy_cloth — lab", 0.0333, screenshot);
     app.insert_resource(options)
         .add_systems(Startup, setup)

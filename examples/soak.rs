@@ -10,12 +10,16 @@
 //! 2.7, projection) circles through it, once every 10 s. Exits with status 1
 //! if a check fails.
 
+#[path = "cli/mod.rs"]
+mod cli;
+
 use std::process::ExitCode;
 use std::time::Instant;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
+use cli::{CliError, Long, Parser, Short, value};
 
 #[derive(Component)]
 struct Orbiting;
@@ -39,18 +43,19 @@ fn main() -> ExitCode {
     let mut method = bevy_cloth::methods::preset("chebyshev")
         .expect("a preset")
         .method;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let value = args.next();
-        let ok = match (a.as_str(), value) {
-            ("--steps", Some(v)) => v.parse().map(|s| steps = s).is_ok(),
-            ("--method", Some(v)) => v.parse().map(|m| method = m).is_ok(),
-            _ => false,
-        };
-        if !ok {
-            eprintln!("usage: soak [--steps N] [--method NAME]");
-            return ExitCode::from(2);
+    let parse = |mut parser: Parser| -> Result<(), CliError> {
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Long("steps") => steps = value(&mut parser, "--steps")?,
+                Long("method") => method = value(&mut parser, "--method")?,
+                Long("help") | Short('h') => return Err(CliError::Help),
+                _ => return Err(arg.unexpected().into()),
+            }
         }
+        Ok(())
+    };
+    if let Err(code) = cli::parse_args("usage: soak [--steps N] [--method NAME]", parse) {
+        return code;
     }
     let mut app = App::new();
     app.add_plugins((MinimalPlugins, ClothPlugins::default()))

@@ -1,4 +1,4 @@
-//! Shared by the windowed examples: command-line options, the scene's
+//! Shared by the windowed examples: the screenshot options, the scene's
 //! light, ground and camera, and the screenshot mode.
 
 use std::path::PathBuf;
@@ -18,6 +18,8 @@ use bevy_cloth::render::ClothRenderPlugin;
 use bevy_cloth::ui::ClothInspectorPlugin;
 use bevy_panorbit_camera::{PanOrbitCamera, PanOrbitCameraPlugin};
 
+use crate::cli::{CliError, Parser};
+
 /// Screenshot mode: render `frames` frames, save a PNG, exit.
 #[derive(Resource, Debug, Clone)]
 pub struct ScreenshotMode {
@@ -25,29 +27,33 @@ pub struct ScreenshotMode {
     pub frames: u32,
 }
 
-/// Parses `--screenshot FILE --frames N` out of `args`, leaving the rest.
-pub fn screenshot_option(args: &mut Vec<String>) -> Result<Option<ScreenshotMode>, String> {
-    let mut path = None;
-    let mut frames = 120;
-    let mut rest = Vec::new();
-    let mut it = std::mem::take(args).into_iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--screenshot" => path = Some(it.next().ok_or("--screenshot needs a file")?),
-            "--frames" => {
-                let v = it.next().ok_or("--frames needs a number")?;
-                frames = v
-                    .parse()
-                    .map_err(|_| format!("--frames: cannot parse '{v}'"))?;
-            }
-            _ => rest.push(a),
-        }
+/// `--screenshot FILE --frames N`, read among an example's other options
+/// (its parser matches the two names and calls the setters).
+#[derive(Debug, Default)]
+pub struct ScreenshotArgs {
+    path: Option<PathBuf>,
+    frames: Option<u32>,
+}
+
+impl ScreenshotArgs {
+    /// `--screenshot FILE`: the value read from `parser`.
+    pub fn set_path(&mut self, parser: &mut Parser) -> Result<(), CliError> {
+        self.path = Some(parser.value()?.into());
+        Ok(())
     }
-    *args = rest;
-    Ok(path.map(|p| ScreenshotMode {
-        path: p.into(),
-        frames,
-    }))
+
+    /// `--frames N`: the value read from `parser`.
+    pub fn set_frames(&mut self, parser: &mut Parser) -> Result<(), CliError> {
+        self.frames = Some(crate::cli::value(parser, "--frames")?);
+        Ok(())
+    }
+
+    /// The screenshot mode, if `--screenshot` was given (120 frames unless
+    /// `--frames` says otherwise).
+    pub fn finish(self) -> Option<ScreenshotMode> {
+        let frames = self.frames.unwrap_or(120);
+        self.path.map(|path| ScreenshotMode { path, frames })
+    }
 }
 
 /// A windowed app with the cloth, rendering, picking, drag, panel and orbit
@@ -250,18 +256,6 @@ pub fn checker_material(
         cull_mode: None,
         perceptual_roughness: 0.8,
         ..default()
-    })
-}
-
-/// The parsed arguments, or the error and `usage` printed and exit code 2
-/// (`-h` parses to an empty error: the usage alone).
-pub fn or_usage<T>(parsed: Result<T, String>, usage: &str) -> Result<T, ExitCode> {
-    parsed.map_err(|e| {
-        if !e.is_empty() {
-            eprintln!("error: {e}");
-        }
-        eprintln!("{usage}");
-        ExitCode::from(2)
     })
 }
 

@@ -39,7 +39,26 @@ struct Options {
     seconds: Option<f64>,
 }
 
-fn parse() -> Result<Options, String> {
+/// Why the command line was not run: `--help`, or what is wrong.
+enum Stop {
+    Help,
+    Bad(String),
+}
+
+impl From<lexopt::Error> for Stop {
+    fn from(e: lexopt::Error) -> Self {
+        Self::Bad(e.to_string())
+    }
+}
+
+impl From<String> for Stop {
+    fn from(e: String) -> Self {
+        Self::Bad(e)
+    }
+}
+
+fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
+    use lexopt::prelude::*;
     let mut o = Options {
         mode: Mode::Accuracy,
         out: None,
@@ -48,43 +67,50 @@ fn parse() -> Result<Options, String> {
         only: None,
         seconds: None,
     };
-    let mut args = std::env::args().skip(1);
-    while let Some(arg) = args.next() {
-        let mut value = || args.next().ok_or(format!("{arg} needs a value"));
-        match arg.as_str() {
-            "--stability" => o.mode = Mode::Stability,
-            "--perf" => o.mode = Mode::Perf,
-            "--out" => o.out = Some(value()?),
-            "--tiny" => o.tiny = true,
-            "--sizes" => {
-                let list = value()?
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("stability") => o.mode = Mode::Stability,
+            Long("perf") => o.mode = Mode::Perf,
+            Long("out") => o.out = Some(parser.value()?.string()?),
+            Long("tiny") => o.tiny = true,
+            Long("sizes") => {
+                let list = parser
+                    .value()?
+                    .string()?
                     .split(',')
                     .map(|n| n.trim().parse::<usize>())
                     .collect::<Result<Vec<_>, _>>()
                     .map_err(|e| format!("--sizes: {e}"))?;
                 if list.iter().any(|&n| n < 2) {
-                    return Err("--sizes: every size must be at least 2".into());
+                    return Err(Stop::Bad("--sizes: every size must be at least 2".into()));
                 }
                 o.sizes = Some(list);
             }
-            "--only" => o.only = Some(value()?),
-            "--seconds" => match value()?.parse::<f64>() {
+            Long("only") => o.only = Some(parser.value()?.string()?),
+            Long("seconds") => match parser.value()?.parse::<f64>() {
                 Ok(s) if s > 0.0 && s.is_finite() => o.seconds = Some(s),
-                _ => return Err("--seconds needs a positive number".into()),
+                _ => return Err(Stop::Bad("--seconds needs a positive number".into())),
             },
-            _ => return Err(format!("unknown argument '{arg}'")),
+            Long("help") | Short('h') => return Err(Stop::Help),
+            _ => return Err(arg.unexpected().into()),
         }
     }
     if o.mode != Mode::Perf && (o.sizes.is_some() || o.only.is_some() || o.seconds.is_some()) {
-        return Err("--sizes, --only and --seconds go with --perf".into());
+        return Err(Stop::Bad(
+            "--sizes, --only and --seconds go with --perf".into(),
+        ));
     }
     Ok(o)
 }
 
 fn main() -> ExitCode {
-    let o = match parse() {
+    let o = match parse(lexopt::Parser::from_env()) {
         Ok(o) => o,
-        Err(e) => {
+        Err(Stop::Help) => {
+            println!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        Err(Stop::Bad(e)) => {
             eprintln!("error: {e}\n{USAGE}");
             return ExitCode::from(2);
         }

@@ -62,6 +62,7 @@ impl EarlyStop {
         }
     }
 
+    #[inline]
     pub(super) fn on(&self) -> bool {
         self.tolerance > 0.0
     }

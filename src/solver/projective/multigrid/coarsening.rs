@@ -18,10 +18,12 @@ pub(super) struct Csr {
 }
 
 impl Csr {
+    #[inline]
     pub(super) fn rows(&self) -> usize {
         self.ptr.len() - 1
     }
 
+    #[inline]
     pub(super) fn row(&self, i: usize) -> (&[u32], &[f64]) {
         let r = self.ptr[i]..self.ptr[i + 1];
         (&self.idx[r.clone()], &self.val[r])
@@ -88,11 +90,13 @@ impl Csr {
     }
 
     /// Where entry `(i, j)` is stored, if it is in the pattern.
+    #[inline]
     pub(super) fn position(&self, i: usize, j: usize) -> Option<usize> {
         (self.ptr[i]..self.ptr[i + 1]).find(|&p| self.idx[p] as usize == j)
     }
 
     /// Sets the value at `at` (and its `f32` copy, if made).
+    #[inline]
     pub(super) fn set_at(&mut self, at: usize, v: f64) {
         self.val[at] = v;
         if let Some(v32) = self.val32.get_mut(at) {
@@ -121,11 +125,13 @@ impl Csr {
 
 /// `y = a · x`. Serial: the coarse levels are too small for a task-pool
 /// scope per product to pay (`docs/measurements.md`).
+#[inline]
 pub(super) fn product(a: &Csr, x: &[Vec3A], y: &mut [Vec3A]) {
     a.apply(0..a.rows(), x, y);
 }
 
 /// `r = b − a · x`.
+#[inline]
 pub(super) fn residual(a: &Csr, x: &[Vec3A], b: &[Vec3A], r: &mut [Vec3A]) {
     product(a, x, r);
     for (r, b) in r.iter_mut().zip(b) {
