@@ -358,7 +358,7 @@ pub mod model;
 pub mod render;
 pub mod solver;
 #[cfg(test)]
-mod test_rng;
+mod testing;
 #[cfg(feature = "egui")]
 pub mod ui;
 

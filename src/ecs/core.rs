@@ -382,7 +382,7 @@ pub struct ClothMethods {
 
 impl ClothMethods {
     /// The registered methods, in registration order, each by the
-    /// [`Method::name`] of its default settings (`"jacobi"` for
+    /// [`Method::name`](crate::solver::Method::name) of its default settings (`"jacobi"` for
     /// [`ImplicitPlugin`](crate::ImplicitPlugin)).
     pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
         self.ids.iter().map(|&(_, _, name)| name)

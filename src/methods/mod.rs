@@ -4,7 +4,7 @@
 //! folder (e.g. [`ImplicitSolver`] in `solver/implicit/`). One line of the
 //! `method_table!` below makes it
 //!
-//! - an ECS component (inserting it on a [`Cloth`](crate::Cloth) selects
+//! - an ECS component (inserting it on a [`Cloth`] selects
 //!   the method; a cloth has one method at a time),
 //! - a plugin (`MethodPlugin<ItsType>`, with a named alias such as
 //!   [`ImplicitPlugin`]) and a member of [`ClothPlugins`](crate::ClothPlugins),

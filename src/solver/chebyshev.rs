@@ -4,11 +4,10 @@
 //! dynamics: the setting ([`Rho`]), the weights, the estimate of `ρ` and the
 //! blend of an update with the iterate before last.
 
-use core::ops::{Add, Mul, Sub};
-
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
+pub(crate) use super::engine::kernels::blend;
 use super::{LAB_RHO, ParamError};
 
 /// The spectral radius `ρ` that Chebyshev acceleration assumes.
@@ -68,16 +67,4 @@ pub fn rho_from_update_norms(norms: &[f64]) -> f32 {
         return 0.9;
     }
     ((norms[hi] / norms[lo]).powf(1.0 / (hi - lo) as f64) as f32).clamp(0.5, 0.9999)
-}
-
-/// Chebyshev's blend of an update `x̂` with the iterate before last:
-/// `ω(x̂ − before) + before` (the same operations, in this order, on every
-/// path: a vertex, a lane of the grid kernels, a projective iterate).
-#[inline(always)]
-pub(crate) fn blend<T>(omega: f32, x_hat: T, before: T) -> T
-where
-    T: Copy + Add<Output = T> + Sub<Output = T>,
-    f32: Mul<T, Output = T>,
-{
-    omega * (x_hat - before) + before
 }

@@ -3,10 +3,10 @@
 
 use bevy::math::{Vec3A, Vec4};
 
-use super::{SpringStiffness, StepParams};
+use super::params::{SpringStiffness, StepParams};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::kernels::{for_chunks, spring_groups};
-use crate::solver::engine::springs::{spring_terms, stiffness_coeffs};
+use crate::solver::springs::{spring_terms, stiffness_coeffs};
 
 /// The gradient of the implicit-Euler objective (the lab's equation 1),
 /// `g = M(x − x̃)/dt² − f(x)` with spring and gravity forces, into `out`.

@@ -8,7 +8,7 @@
 
 use core::fmt::Debug;
 
-use super::{ParamError, StepError, StepParams, StepReport, check_state};
+use super::params::{ParamError, StepError, StepParams, StepReport, check_state};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 

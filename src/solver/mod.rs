@@ -1,4 +1,4 @@
-//! Pure numerics: one file per method, one entry point each. No ECS types.
+//! Pure numerics: a folder per method, one entry point each, over the engine room. No ECS types.
 //!
 //! Every method ([`Method::step`], its one entry point) advances a [`ClothState`](crate::model::ClothState) by one time step of a
 //! [`ClothModel`](crate::model::ClothModel) under [`StepParams`], using a method-specific workspace that
@@ -46,6 +46,8 @@ pub mod method;
 pub mod params;
 pub mod pbd;
 pub mod projective;
+#[doc(hidden)]
+pub mod springs;
 pub mod symplectic;
 
 pub use engine::kernels::PARALLEL_MIN;
@@ -54,7 +56,6 @@ pub use measures::{
     ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective, step_error,
 };
 pub use method::{LAB_ITERATIONS, LAB_RHO, Method, StepInput};
-pub(crate) use params::check_state;
 pub use params::{
     CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,
     StepReport,

@@ -5,6 +5,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 use thiserror::Error;
 
+pub use super::engine::cholesky::SolveError;
 use crate::model::{ClothModel, ClothState, SpringKind};
 
 /// Stiffness of each [`SpringKind`].
@@ -81,10 +82,10 @@ pub struct StepParams {
     /// threads (default `true`).
     pub parallel: bool,
     /// The SIMD instruction set of the spring pass, and of both passes of
-    /// the stencil kernels (default [`Simd::Auto`](super::Simd::Auto): the
+    /// the stencil kernels (default [`Simd::Auto`](super::engine::simd::Simd::Auto): the
     /// fastest this CPU has). Every choice gives the same bits; this only
     /// trades speed.
-    pub simd: super::Simd,
+    pub simd: super::engine::simd::Simd,
     /// Whether a cloth whose springs form a stencil (a grid numbered row by
     /// row, as every builder's) runs the implicit iteration's, PBD's,
     /// symplectic Euler's and projective dynamics' local step's
@@ -108,7 +109,7 @@ impl StepParams {
         damping: 0.99,
         gravity: Vec3::new(0.0, -9.8, 0.0),
         parallel: true,
-        simd: super::Simd::Auto,
+        simd: super::engine::simd::Simd::Auto,
         stencil: true,
     };
 
@@ -157,19 +158,6 @@ pub enum StepError {
         /// Positions or velocities in the state.
         got: usize,
     },
-}
-
-/// Why a linear solve failed. The state is left untouched.
-#[derive(Error, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SolveError {
-    /// Conjugate gradients met a direction of non-positive curvature: `A` is
-    /// not positive definite (compressed springs under the exact spring
-    /// Jacobian, or an exact penalty Jacobian).
-    #[error("the system matrix is not positive definite")]
-    NotPositiveDefinite,
-    /// The sparse factorisation failed or produced a non-finite solution.
-    #[error("the sparse factorisation failed")]
-    Factorization,
 }
 
 /// What a step reports about its solve.

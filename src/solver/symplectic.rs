@@ -6,7 +6,7 @@
 //! is needed. `f` holds spring, gravity and penalty forces; fixed particles
 //! are skipped. A cloth whose springs form a stencil (every builder's
 //! grid) sums its spring terms on the structure-of-arrays kernels
-//! (`stencil`), unless [`StepParams::stencil`] is off. The step is explicit in the forces, so it is stable only
+//! (`stencil`), unless `StepParams::stencil` is off. The step is explicit in the forces, so it is stable only
 //! for `h` below about `2/ω_max` (`ω_max²` the largest eigenvalue of
 //! `M⁻¹K`); past that it diverges, and the divergence guard catches it.
 
@@ -17,8 +17,8 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::model::ClothState;
-use crate::solver::engine::springs::{spring_terms, stiffness_coeffs};
 use crate::solver::engine::stencil::StencilWorkspace;
+use crate::solver::springs::{spring_terms, stiffness_coeffs};
 
 /// Steps a cloth by symplectic Euler (`A = M`, the assignment's first
 /// stage): `v ← v + h M⁻¹f`, `x ← x + h v` (see the module docs). Explicit,

@@ -7,7 +7,7 @@ use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::ParamError;
 use crate::solver::engine::kernels::Springs;
 use crate::solver::engine::simd;
-use crate::test_rng::noise;
+use crate::testing::{noise, run_from_rest};
 
 fn lab() -> (ClothModel, ClothState) {
     let model = ClothBuilder::lab().build().unwrap();
@@ -17,19 +17,14 @@ fn lab() -> (ClothModel, ClothState) {
 
 /// A swinging state: the lab cloth after `steps` Jacobi steps.
 fn swinging(steps: usize) -> (ClothModel, ClothState) {
-    let (model, mut state) = lab();
-    let mut ws = ImplicitWorkspace::default();
-    for _ in 0..steps {
-        Method::step(
-            &ImplicitSolver::default(),
-            &model,
-            &mut state,
-            &StepParams::LAB,
-            &[],
-            &mut ws,
-        )
-        .unwrap();
-    }
+    let model = ClothBuilder::lab().build().unwrap();
+    let state = run_from_rest(
+        &ImplicitSolver::default(),
+        &model,
+        &StepParams::LAB,
+        &[],
+        steps,
+    );
     (model, state)
 }
 

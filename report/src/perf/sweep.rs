@@ -413,16 +413,12 @@ pub fn simd_levels(config: &PerfConfig) -> Vec<SimdRow> {
         ..StepParams::LAB
     };
     let mut coeffs = Vec::new();
-    bevy_cloth::solver::engine::springs::stiffness_coeffs(
-        &model,
-        &StepParams::LAB.stiffness,
-        &mut coeffs,
-    );
+    bevy_cloth::solver::springs::stiffness_coeffs(&model, &StepParams::LAB.stiffness, &mut coeffs);
     let mut terms = vec![bevy::math::Vec3A::ZERO; model.topology().springs().len()];
     let passes = interleaved(config, &levels, |level| {
         let t = Instant::now();
         for _ in 0..32 {
-            bevy_cloth::solver::engine::springs::spring_terms(
+            bevy_cloth::solver::springs::spring_terms(
                 &params(level),
                 &model,
                 &start.positions,

@@ -11,10 +11,24 @@ use faer::sparse::linalg::cholesky::{
 use faer::{Conj, MatMut, Par, Side};
 
 use super::simd::Simd;
-use crate::solver::SolveError;
 use crate::solver::engine::kernels::parallel_pool;
 use crate::solver::engine::lane_factor::LaneFactor;
 use crate::solver::engine::supernodal::{PartScratch, Plan, Structure, solve3};
+use bevy::reflect::Reflect;
+use thiserror::Error;
+
+/// Why a linear solve failed. The state is left untouched.
+#[derive(Error, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveError {
+    /// Conjugate gradients met a direction of non-positive curvature: `A` is
+    /// not positive definite (compressed springs under the exact spring
+    /// Jacobian, or an exact penalty Jacobian).
+    #[error("the system matrix is not positive definite")]
+    NotPositiveDefinite,
+    /// The sparse factorisation failed or produced a non-finite solution.
+    #[error("the sparse factorisation failed")]
+    Factorization,
+}
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic
 /// analysis is done once for a sparsity pattern and reused by every

@@ -1,6 +1,8 @@
 //! The hot loops the spring-based methods share: the packed-SIMD spring
 //! pass and the fixed-chunk (optionally parallel) loops.
 
+use core::ops::{Add, Mul, Sub};
+
 use bevy::math::{Mat4, Vec3A, Vec4};
 
 use crate::model::{ClothModel, Spring};
@@ -391,4 +393,17 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     sums.iter().sum::<f64>() + tail
+}
+
+/// Chebyshev's blend of an update `x̂` with the iterate before last
+/// (`solver::chebyshev`):
+/// `ω(x̂ − before) + before` (the same operations, in this order, on every
+/// path: a vertex, a lane of the grid kernels, a projective iterate).
+#[inline(always)]
+pub(crate) fn blend<T>(omega: f32, x_hat: T, before: T) -> T
+where
+    T: Copy + Add<Output = T> + Sub<Output = T>,
+    f32: Mul<T, Output = T>,
+{
+    omega * (x_hat - before) + before
 }

@@ -5,8 +5,6 @@
 //!   CPU at run time, and the spring pass at each level;
 //! - [`kernels`]: the general spring pass over any spring list, the padded
 //!   per-vertex gathers, and the fixed-chunk (optionally parallel) loops;
-//! - [`springs`]: the spring pass as the methods call it (coefficients from
-//!   the step's stiffness);
 //! - `phases`: one parallel region per iteration, in phases;
 //! - `stencil`: the grid kernels (structure-of-arrays) of the implicit
 //!   iteration, symplectic Euler, projective dynamics' local step and PBD's
@@ -23,6 +21,5 @@ pub mod kernels;
 pub(crate) mod lane_factor;
 pub(crate) mod phases;
 pub mod simd;
-pub mod springs;
 pub(crate) mod stencil;
 pub(crate) mod supernodal;

@@ -56,7 +56,7 @@ macro_rules! at_level {
     ($(#[$doc:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $kernel:ident) => {
         $(#[$doc])*
         #[allow(unsafe_code)]
-        $vis fn $name(level: $crate::solver::Simd, $($arg: $ty),*) $(-> $ret)? {
+        $vis fn $name(level: $crate::solver::engine::simd::Simd, $($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
             #[target_feature(enable = "avx,avx2,fma")]
             fn avx2($($arg: $ty),*) $(-> $ret)? {
@@ -71,10 +71,10 @@ macro_rules! at_level {
                 // SAFETY: `Simd::resolve` returns a level only if the CPU
                 // has its features.
                 #[cfg(target_arch = "x86_64")]
-                $crate::solver::Simd::Avx512 => unsafe { avx512($($arg),*) },
+                $crate::solver::engine::simd::Simd::Avx512 => unsafe { avx512($($arg),*) },
                 // SAFETY: as above.
                 #[cfg(target_arch = "x86_64")]
-                $crate::solver::Simd::Avx2 => unsafe { avx2($($arg),*) },
+                $crate::solver::engine::simd::Simd::Avx2 => unsafe { avx2($($arg),*) },
                 _ => $kernel($($arg),*),
             }
         }
@@ -83,7 +83,7 @@ macro_rules! at_level {
 pub(crate) use at_level;
 
 /// Which SIMD instruction set the spring pass runs on
-/// ([`StepParams::simd`](super::StepParams::simd)). Every choice gives the
+/// ([`StepParams::simd`](crate::solver::StepParams::simd)). Every choice gives the
 /// same bits (see the [module docs](self)); this only trades speed.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[reflect(Debug, PartialEq, Default)]

@@ -22,7 +22,7 @@
 //! Then `v = (x − x_old)/dt`.
 //!
 //! The Hessian's sparse Cholesky is always supernodal
-//! ([`SparseCholesky::for_block_hessian`]): its 3×3 blocks make dense
+//! (`SparseCholesky::for_block_hessian`, in the engine room): its 3×3 blocks make dense
 //! supernodes; on the lab's 21² cloth that halves the step against the
 //! row-by-row factor faer's heuristic picks there.
 //!

@@ -5,22 +5,17 @@ use crate::model::ClothBuilder;
 use crate::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
 use crate::solver::linear::{self as lin, LinearImplicitSolver, LinearSolver, LinearWorkspace};
 use crate::solver::step_error;
+use crate::testing::run_from_rest;
 
 fn lab_swinging(steps: usize) -> (ClothModel, ClothState) {
     let model = ClothBuilder::lab().build().unwrap();
-    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-    let mut ws = ExactWorkspace::default();
-    for _ in 0..steps {
-        Method::step(
-            &ExactSolver::default(),
-            &model,
-            &mut state,
-            &StepParams::LAB,
-            &[],
-            &mut ws,
-        )
-        .unwrap();
-    }
+    let state = run_from_rest(
+        &ExactSolver::default(),
+        &model,
+        &StepParams::LAB,
+        &[],
+        steps,
+    );
     (model, state)
 }
 
@@ -273,8 +268,9 @@ fn estimated_rho_accelerates_the_lab_step() {
     }
 }
 
-/// Runs `steps` steps of `config` from rest on the lab cloth with `params`.
-fn run_from_rest(
+/// Runs `steps` steps of `config` from rest on the lab cloth with `params`,
+/// with the iterations each took.
+fn run_counting_iterations(
     model: &ClothModel,
     params: &StepParams,
     config: &ExactSolver,
@@ -312,8 +308,9 @@ fn newton_on_a_budget_follows_the_exact_run_and_spends_its_budget_only_on_stiff_
     // and to 5 % on the nearly rigid stiff sheet (whose fall amplifies each
     // step's 1e-5 tolerance; the map's verdict allows 10 % of the drop).
     for (params, bound) in [(StepParams::LAB, 1e-3), (stiff, 0.05)] {
-        let (exact, _) = run_from_rest(&model, &params, &ExactSolver::REFERENCE, 10);
-        let (newton, iterations) = run_from_rest(&model, &params, &ExactSolver::BUDGET, 10);
+        let (exact, _) = run_counting_iterations(&model, &params, &ExactSolver::REFERENCE, 10);
+        let (newton, iterations) =
+            run_counting_iterations(&model, &params, &ExactSolver::BUDGET, 10);
         let error = step_error(&newton.positions, &exact.positions, &rest.positions);
         assert!(error < bound, "{params:?}: error {error}");
         assert!(iterations.iter().all(|&k| k <= 16), "{iterations:?}");
@@ -324,7 +321,7 @@ fn newton_on_a_budget_follows_the_exact_run_and_spends_its_budget_only_on_stiff_
     assert!(spent[1] > spent[0], "{spent:?}");
     // What the budget buys there: Anderson-accelerated projective dynamics
     // at its stiff-cloth setting stays far above the sheet (it locks).
-    let (exact, _) = run_from_rest(&model, &stiff, &ExactSolver::REFERENCE, 10);
+    let (exact, _) = run_counting_iterations(&model, &stiff, &ExactSolver::REFERENCE, 10);
     let mut pd = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let mut ws = Default::default();
     let anderson = crate::solver::projective::ProjectiveSolver::anderson(20, 5);

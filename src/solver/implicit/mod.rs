@@ -30,8 +30,8 @@ use bevy::reflect::std_traits::ReflectDefault;
 pub use super::chebyshev::{Rho, rho_from_update_norms};
 use super::chebyshev::{blend, chebyshev_omega, validate_chebyshev};
 use super::engine::kernels::{PaddedRows, RowGather, for_chunks, for_chunks2};
-use super::engine::springs::{spring_terms, stiffness_coeffs};
 use super::engine::stencil::{StencilWorkspace, Update, VertexData};
+use super::springs::{spring_terms, stiffness_coeffs};
 use super::{
     ConvergenceSums, LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepReport,
 };
@@ -110,7 +110,7 @@ impl Method for ImplicitSolver {
     ///
     /// A cloth whose springs form a stencil runs both passes on the
     /// structure-of-arrays kernels of `solver::engine::stencil` (unless
-    /// [`StepParams::stencil`] is off); the rest of this describes the
+    /// `StepParams::stencil` is off); the rest of this describes the
     /// general kernels.
     ///
     /// Each iteration is two passes: one over springs, which computes every

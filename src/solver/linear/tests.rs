@@ -4,7 +4,7 @@ use super::*;
 use crate::collision::PenaltySphere;
 use crate::model::{ClothBuilder, ClothModel, ClothState};
 use crate::solver::{SpringStiffness, StepParams};
-use crate::test_rng::noise;
+use crate::testing::noise;
 
 /// The assignment's scene parameters: h = 5e-3, E = 10, gravity −9.8 y, no
 /// damping.

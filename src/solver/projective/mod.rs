@@ -27,7 +27,7 @@
 //! refactorised when one of them changes; each iteration is one forward and
 //! one back substitution with the three coordinates as an `n×3` block
 //! (hand-written for three columns:
-//! [`SparseCholesky::solve_factored_xyz`](crate::solver::engine::cholesky::SparseCholesky::solve_factored_xyz);
+//! `SparseCholesky::solve_factored_xyz` in the engine room;
 //! on faer's simplicial factor, which it picks for small cloths, the
 //! coordinates are lanes of one vector and the rows and columns are taken
 //! by level of the elimination tree; on the supernodal one, the solve is
@@ -447,7 +447,8 @@ impl Method for ProjectiveSolver {
     /// Advances `state` by one projective-dynamics step (see the module
     /// docs). Reports the iterations and the final gradient norm of the
     /// objective over free vertices; a failed factorisation is
-    /// [`SolveError`] (the guard reports it as `SolveFailed`).
+    /// [`SolveError`](crate::solver::SolveError) (the guard reports it as
+    /// `SolveFailed`).
     fn advance(
         &self,
         input: StepInput<'_>,

@@ -5,6 +5,7 @@ use crate::collision::PenaltySphere;
 use crate::model::ClothBuilder;
 use crate::solver::exact::{ExactSolver, ExactWorkspace};
 use crate::solver::{SpringStiffness, step_error};
+use crate::testing::run_from_rest;
 
 fn lab() -> ClothModel {
     ClothBuilder::lab().build().unwrap()
@@ -24,14 +25,7 @@ fn swinging_onto(
     spheres: &[PenaltySphere],
     steps: usize,
 ) -> ClothState {
-    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
-    let mut ws = ExactWorkspace::default();
-    for _ in 0..steps {
-        ExactSolver::REFERENCE
-            .step(model, &mut state, params, spheres, &mut ws)
-            .unwrap();
-    }
-    state
+    run_from_rest(&ExactSolver::REFERENCE, model, params, spheres, steps)
 }
 
 /// The report's sphere scene's sphere: the lab's, as a penalty sphere

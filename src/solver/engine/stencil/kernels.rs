@@ -6,7 +6,7 @@ use bevy::math::Vec3A;
 
 use super::{Update, VertexData};
 use crate::model::stencil::MAX_FAMILIES;
-use crate::solver::chebyshev::blend;
+use crate::solver::engine::kernels::blend;
 use crate::solver::engine::simd::at_level;
 
 /// Vertices per block of the vertex pass: its sums live in stack arrays.

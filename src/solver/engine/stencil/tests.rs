@@ -10,7 +10,7 @@ use crate::solver::pbd::PbdSolver;
 use crate::solver::projective::ProjectiveSolver;
 use crate::solver::symplectic::SymplecticSolver;
 use crate::solver::{Method, PARALLEL_MIN, Simd, SpringStiffness, StepParams, StepReport};
-use crate::test_rng::next_u64;
+use crate::testing::next_u64;
 
 /// The implicit methods the stencil kernels run.
 const METHODS: [ImplicitSolver; 3] = [

@@ -1,12 +1,13 @@
 //! The spring pass as the methods call it: each spring's gradient term from
-//! the step's stiffness, over chunks and at the step's SIMD level.
+//! the step's stiffness, over chunks and at the step's SIMD level (the
+//! engine's kernels underneath; hidden from the docs, the report times it).
 
 use bevy::math::Vec3A;
 
+use super::params::{SpringStiffness, StepParams};
 use crate::model::ClothModel;
 use crate::solver::engine::kernels::{Springs, for_chunks};
 use crate::solver::engine::simd::spring_products;
-use crate::solver::{SpringStiffness, StepParams};
 
 /// Per spring `[k, kL]`, the coefficients of the implicit gradient term
 /// `d·k(1 − L/l)` for the spring pass.
