@@ -245,3 +245,17 @@ pub enum ParamError {
     #[error("choose one acceleration: Chebyshev or Anderson, not both")]
     Acceleration,
 }
+
+/// Checks an iterative solve's budget: at least one iteration, and a
+/// tolerance that is a number and not negative (0: run every iteration).
+/// Shared by the methods that stop at a tolerance within a cap (Newton,
+/// conjugate gradients).
+pub(crate) fn check_budget(max_iterations: u32, tolerance: f64) -> Result<(), ParamError> {
+    if max_iterations == 0 {
+        return Err(ParamError::Iterations);
+    }
+    if !(tolerance.is_finite() && tolerance >= 0.0) {
+        return Err(ParamError::Tolerance(tolerance));
+    }
+    Ok(())
+}

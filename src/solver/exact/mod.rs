@@ -38,6 +38,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
+use super::params::check_budget;
 use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
 use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
@@ -122,13 +123,7 @@ impl Method for ExactSolver {
     }
 
     fn validate(&self) -> Result<(), ParamError> {
-        if self.max_iterations == 0 {
-            return Err(ParamError::Iterations);
-        }
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
-            return Err(ParamError::Tolerance(self.tolerance));
-        }
-        Ok(())
+        check_budget(self.max_iterations, self.tolerance)
     }
 
     /// Advances `state` by one exact implicit-Euler step (see the module docs).

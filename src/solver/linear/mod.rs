@@ -40,6 +40,7 @@ use faer::dyn_stack::MemBuffer;
 pub use assembly::LinearSystem;
 use assembly::pattern_key;
 
+use super::params::check_budget;
 use super::{Method, ParamError, SolveError, StepError, StepInput, StepReport};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
@@ -207,15 +208,10 @@ impl Method for LinearImplicitSolver {
     }
 
     fn validate(&self) -> Result<(), ParamError> {
-        if let LinearSolver::Cg(cg) = self.solver {
-            if cg.max_iterations == 0 {
-                return Err(ParamError::Iterations);
-            }
-            if !(cg.tolerance.is_finite() && cg.tolerance >= 0.0) {
-                return Err(ParamError::Tolerance(cg.tolerance));
-            }
+        match self.solver {
+            LinearSolver::Cg(cg) => check_budget(cg.max_iterations, cg.tolerance),
+            LinearSolver::Direct => Ok(()),
         }
-        Ok(())
     }
 
     /// Advances `state` by one linearly implicit Euler step (see the module

@@ -473,6 +473,8 @@ impl PhasedIteration<'_> {
                     x.slice(comp * n + start + o, m),
                 )
             };
+            // SAFETY: family `f`'s terms of chunk `c` are this item's
+            // alone in a spring phase, and nothing reads them meanwhile.
             let [tx, ty, tz] = [0, 1, 2].map(|comp| unsafe {
                 self.terms
                     .0
@@ -515,6 +517,8 @@ impl PhasedIteration<'_> {
             data: self.data,
         };
         let squares = vertices(self.level, &chunk, xs, prev, update);
+        // SAFETY: slot `(k, c)` of the sums is this item's alone, and the
+        // sums have a slot per iteration and chunk.
         unsafe { *self.sums.0.add(k * self.chunks + c) = squares };
     }
 
@@ -550,6 +554,8 @@ impl PhasedIteration<'_> {
             let target = &self.target[comp][start..start + len];
             gradient_run(&terms, comp, start, g, (xs[comp], target, mass));
         }
+        // SAFETY: the chunk's range of the gradient and the output
+        // positions (each `n` long) is this item's alone.
         let (gradient, positions) = unsafe {
             (
                 std::slice::from_raw_parts_mut(self.gradient.0.add(start), len),

@@ -220,6 +220,8 @@ impl PhasedIteration<'_> {
                 )
             };
             let out = |(data, _): (SharedF32, usize)| {
+                // SAFETY: chunk `c`'s proposals of family `f` are this
+                // item's alone in a proposal phase.
                 [0, 1, 2].map(|comp| unsafe {
                     data.slice_mut((3 * f + comp) * self.stride + self.pad + start, len)
                 })
@@ -253,6 +255,8 @@ impl PhasedIteration<'_> {
         let pins = &self.pins[self.pins.partition_point(|&p| p < start)
             ..self.pins.partition_point(|&p| p < start + len)];
         for comp in 0..3 {
+            // SAFETY: the chunk's positions are this item's alone in a
+            // vertex phase.
             let x = unsafe { self.x.slice_mut(comp * n + start, len) };
             vertices(self.level, &first, &second, comp, start, x, w);
             // Pinned vertices never move: back to where the step began.
