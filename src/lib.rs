@@ -74,7 +74,7 @@
 //! ## Methods
 //!
 //! A method is a settings type implementing [`solver::Method`], in its own
-//! solver file; the method table ([`methods`]) makes each a component, a
+//! solver folder; the method table ([`methods`]) makes each a component, a
 //! plugin and a variant of [`AnyMethod`], and [`PRESETS`] names each
 //! method's interactive settings once (`jacobi`, `chebyshev`, `pbd`, …: the
 //! names the panel, `--method`, [`ClothStats::method`], the report and the
@@ -227,14 +227,18 @@
 //!
 //! - [`model`]: pure data. Topology (springs, vertex→spring adjacency),
 //!   masses, pins, state. No systems.
-//! - [`solver`] and [`collision`]: pure numerics, one file per method, each
+//! - [`solver`] and [`collision`]: pure numerics, a folder per method, each
 //!   a settings type implementing [`solver::Method`]: a step takes a model, a
 //!   state, parameters and a reusable workspace. No entities, no `Time`, no
-//!   `Transform`: testable and benchmarkable alone.
+//!   `Transform`: testable and benchmarkable alone. The methods share the
+//!   engine room (`solver::engine`, hidden from these docs): the SIMD and
+//!   grid kernels, the parallel phases and the sparse factorisation, the
+//!   only code with `unsafe` (the crate denies it elsewhere).
 //! - [`methods`]: the method table, where each method becomes a component,
-//!   a plugin and an [`AnyMethod`] variant, and [`PRESETS`].
-//! - [`ecs`]: thin glue. Components, system sets and plugins that copy the
-//!   time step and transforms in, call a solver, and publish statistics.
+//!   a plugin and an [`AnyMethod`] variant, and [`PRESETS`]; the generic
+//!   [`MethodPlugin`] and the diagnostic for a cloth no method steps.
+//! - [`ecs`]: thin glue. Components, system sets and the core plugin that
+//!   copy the time step and transforms in, and publish statistics.
 //!
 //! A cloth's method is a component: inserting [`PbdSolver`] on a cloth that
 //! had an [`ImplicitSolver`] removes the latter (one method per cloth) and

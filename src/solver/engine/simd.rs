@@ -50,8 +50,9 @@ use crate::solver::engine::kernels::{Springs, spring_scales_by};
 /// Sound by construction: the generated function resolves `level` itself
 /// ([`Simd::resolve`], which never names a level the CPU lacks), so no
 /// caller can reach a `#[target_feature]` copy on a CPU without it. The
-/// `unsafe` it expands to is written here, in the engine room, and allowed
-/// only inside the generated function.
+/// `unsafe` it expands to is written here and allowed only inside the
+/// generated function; the macro is visible to the engine room alone, so
+/// no module outside it holds an expansion.
 macro_rules! at_level {
     ($(#[$doc:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $kernel:ident) => {
         $(#[$doc])*
@@ -80,7 +81,7 @@ macro_rules! at_level {
         }
     };
 }
-pub(crate) use at_level;
+pub(super) use at_level;
 
 /// Which SIMD instruction set the spring pass runs on
 /// ([`StepParams::simd`](crate::solver::StepParams::simd)). Every choice gives the

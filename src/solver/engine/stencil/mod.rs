@@ -42,6 +42,7 @@ use crate::model::stencil::{MAX_FAMILIES, Stencil};
 
 mod kernels;
 pub(crate) mod pbd;
+pub(crate) mod residual;
 
 use kernels::{Chunk, gradient_run, springs, sums, vertices};
 pub(crate) use kernels::{Ends, Terms, padded_rows, to_soa};

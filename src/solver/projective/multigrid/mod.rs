@@ -60,7 +60,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use crate::solver::SolveError;
 use crate::solver::engine::cholesky::{SparseCholesky, cholesky_in_place};
-use crate::solver::engine::simd::{Simd, at_level};
+use crate::solver::engine::simd::Simd;
+use crate::solver::engine::stencil::residual::{StencilMatrix, stencil_residual};
 
 mod coarsening;
 
@@ -234,7 +235,7 @@ pub(super) struct FineStencil {
 /// [`StepParams::simd`](super::StepParams::simd), chosen at run time).
 #[derive(Clone, Debug, Default)]
 struct Fine {
-    op: FineOp,
+    op: StencilMatrix,
     /// Per vertex: `ω / s_ii` (0 where pinned).
     smooth: Vec<f32>,
     free: Vec<u32>,
@@ -244,59 +245,6 @@ struct Fine {
     x: [Vec<f32>; 3],
     b: [Vec<f32>; 3],
     r: [Vec<f32>; 3],
-}
-
-/// The finest matrix as a stencil (see [`FineStencil`]).
-#[derive(Clone, Debug, Default)]
-struct FineOp {
-    offsets: Vec<usize>,
-    /// The vectors' and coefficients' zero padding on each side: the
-    /// largest offset.
-    pad: usize,
-    /// Per family, `n + 2·pad` (padded).
-    coeffs: Vec<Vec<f32>>,
-    /// Per vertex: `s_ii` (1 where pinned).
-    diag: Vec<f32>,
-}
-
-/// Rows per block of the fine residual: a block's vectors stay in L1
-/// while each family adds its terms.
-const BLOCK: usize = 256;
-
-at_level! {
-    /// [`residual_kernel`] at `level`.
-    fn fine_residual(fine: &FineOp, x: &[f32], b: &[f32], r: &mut [f32]) => residual_kernel
-}
-
-/// `r = b − S x` on the stencil, `x` padded.
-#[inline(always)]
-fn residual_kernel(fine: &FineOp, x: &[f32], b: &[f32], r: &mut [f32]) {
-    let (n, p) = (r.len(), fine.pad);
-    let mut start = 0;
-    while start < n {
-        let end = (start + BLOCK).min(n);
-        let len = end - start;
-        let rb = &mut r[start..end];
-        let (bb, db, xb) = (
-            &b[start..end],
-            &fine.diag[start..end],
-            &x[p + start..p + end],
-        );
-        for i in 0..len {
-            rb[i] = bb[i] - db[i] * xb[i];
-        }
-        for (c, &o) in fine.coeffs.iter().zip(&fine.offsets) {
-            let (c_up, x_up) = (&c[p + start..p + end], &x[p + start + o..p + end + o]);
-            let (c_down, x_down) = (
-                &c[p + start - o..p + end - o],
-                &x[p + start - o..p + end - o],
-            );
-            for i in 0..len {
-                rb[i] += c_up[i] * x_up[i] + c_down[i] * x_down[i];
-            }
-        }
-        start = end;
-    }
 }
 
 impl Fine {
@@ -326,7 +274,7 @@ impl Fine {
         }
         pt.cols = n;
         Self {
-            op: FineOp {
+            op: StencilMatrix {
                 coeffs: coeffs.iter().map(|c| padded(c)).collect(),
                 offsets,
                 pad,
@@ -344,7 +292,7 @@ impl Fine {
     /// `r = b − S x`, each coordinate.
     fn residual(&mut self, simd: Simd) {
         for c in 0..3 {
-            fine_residual(simd, &self.op, &self.x[c], &self.b[c], &mut self.r[c]);
+            stencil_residual(simd, &self.op, &self.x[c], &self.b[c], &mut self.r[c]);
         }
     }
 
