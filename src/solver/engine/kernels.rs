@@ -407,3 +407,92 @@ where
 {
     omega * (x_hat - before) + before
 }
+
+#[cfg(test)]
+mod tests {
+    use bevy::math::Affine3A;
+
+    use super::*;
+    use crate::model::{ClothBuilder, ClothState};
+    use crate::testing::noise;
+
+    /// The lab cloth's padded rows over one item per spring and the pad's.
+    fn lab_rows() -> (ClothModel, Vec<[[u32; 4]; 2]>) {
+        let model = ClothBuilder::lab().build().unwrap();
+        let rows = model.topology().adjacency().padded().unwrap().to_vec();
+        (model, rows)
+    }
+
+    #[test]
+    fn padded_gathers_sum_each_rows_items_as_the_plain_loop_does() {
+        let (model, rows) = lab_rows();
+        let springs = model.topology().springs().len();
+        let mut seed = 3;
+        let mut items: Vec<Vec3A> = (0..springs).map(|_| noise(&mut seed)).collect();
+        items.push(Vec3A::ZERO);
+        let mut padded = PaddedRows::default();
+        assert!(padded.fill::<Vec3A>(&rows, springs + 1));
+        assert_eq!(padded.len(), rows.len());
+        let gather = padded.gather(0..rows.len(), &items[..]);
+        for (i, [p, m]) in rows.iter().enumerate() {
+            let at = |e: u32| items[e as usize];
+            let plus = (at(p[0]) + at(p[1])) + (at(p[2]) + at(p[3]));
+            let minus = (at(m[0]) + at(m[1])) + (at(m[2]) + at(m[3]));
+            assert_eq!(gather.sums(i, |t| *t, |t| *t), (plus, minus), "row {i}");
+        }
+        // A range of rows counts from its start.
+        let part = padded.gather(5..9, &items[..]).first(4);
+        assert_eq!(part.sums(0, |t| *t, |t| *t), gather.sums(5, |t| *t, |t| *t));
+    }
+
+    #[test]
+    #[should_panic(expected = "padded row index")]
+    fn padded_rows_refuse_an_index_past_their_items() {
+        let (model, rows) = lab_rows();
+        // One item short: the pad's index has nothing to read.
+        PaddedRows::default().fill::<Vec3A>(&rows, model.topology().springs().len());
+    }
+
+    #[test]
+    #[should_panic]
+    fn a_gather_refuses_items_shorter_than_its_rows_were_checked_against() {
+        let (model, rows) = lab_rows();
+        let springs = model.topology().springs().len();
+        let mut padded = PaddedRows::default();
+        padded.fill::<Vec3A>(&rows, springs + 1);
+        let short = vec![Vec3A::ZERO; springs];
+        padded.gather(0..rows.len(), &short[..]);
+    }
+
+    #[test]
+    fn spring_ends_are_the_springs_own_positions() {
+        let model = ClothBuilder::lab().build().unwrap();
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut seed = 5;
+        for x in &mut state.positions {
+            *x += 0.1 * noise(&mut seed);
+        }
+        let x = &state.positions;
+        let springs = model.topology().springs();
+        let coeffs: Vec<[f32; 2]> = springs.iter().map(|s| [1.0, s.rest_length]).collect();
+        let mut seen = 0;
+        spring_scales_ends(Springs::of(&model), &coeffs, x, |e, d, scale, xa, xb| {
+            let s = &springs[e];
+            assert_eq!((xa, xb), (x[s.a as usize], x[s.b as usize]));
+            assert_eq!(d, xa - xb);
+            let l = d.length();
+            assert!((scale - (1.0 - s.rest_length / l)).abs() < 1e-5);
+            seen += 1;
+        });
+        assert_eq!(seen, springs.len());
+    }
+
+    #[test]
+    #[should_panic]
+    fn spring_ends_refuse_too_few_positions() {
+        let model = ClothBuilder::lab().build().unwrap();
+        let coeffs = vec![[0.0; 2]; model.topology().springs().len()];
+        let x = vec![Vec3A::ZERO; model.vertex_count() - 1];
+        spring_scales_ends(Springs::of(&model), &coeffs, &x, |_, _, _, _, _| {});
+    }
+}
