@@ -141,7 +141,8 @@ pub(crate) fn hold_attached(
     } = &mut *memory;
     for (entity, mut cloth, mut attachments) in &mut cloths {
         let cloth = &mut *cloth;
-        if !cloth.initialized {
+        // A state of the wrong size is left for the step to report.
+        if !cloth.initialized || !cloth.state_fits() {
             continue;
         }
         let n = cloth.model.vertex_count();
@@ -257,7 +258,11 @@ pub(crate) fn follow_attached(
     helper: TransformHelper,
 ) {
     for (mut cloth, stats, attachments) in &mut cloths {
-        if !cloth.initialized || !stats.is_running() || cloth.attached.is_empty() {
+        if !cloth.initialized
+            || !stats.is_running()
+            || cloth.attached.is_empty()
+            || !cloth.state_fits()
+        {
             continue;
         }
         let cloth = &mut *cloth;

@@ -128,11 +128,35 @@ impl Cloth {
     }
 
     /// Mutable state, for teleporting or nudging vertices by hand. Changing
-    /// its length is caught by the solvers as a typed error.
+    /// its length is caught by the solvers as a typed error
+    /// ([`ClothStatus::Invalid`] with [`StepError::StateMismatch`]); the
+    /// pins and attachments leave such a state alone. To put back a saved
+    /// state, [`restore`](Self::restore) checks it first.
     #[inline]
     pub fn state_mut(&mut self) -> &mut ClothState {
         self.measured = None;
         &mut self.state
+    }
+
+    /// Replaces the state with `state` (a saved one, say), if it is this
+    /// cloth's size: one position and one velocity per vertex. Otherwise
+    /// the cloth keeps its state and this is
+    /// [`StepError::StateMismatch`]. The cloth continues from `state` at its
+    /// next step, where it is (no placement at its entity's transform).
+    pub fn restore(&mut self, state: ClothState) -> Result<(), StepError> {
+        crate::solver::params::check_state(&self.model, &state)?;
+        self.state = state;
+        self.measured = None;
+        self.initialized = true;
+        self.placed_at = None;
+        Ok(())
+    }
+
+    /// True when the state has one position and one velocity per vertex
+    /// (a state resized through [`state_mut`](Self::state_mut) has not).
+    pub(crate) fn state_fits(&self) -> bool {
+        let n = self.model.vertex_count();
+        self.state.positions.len() == n && self.state.velocities.len() == n
     }
 
     /// World-space vertex positions (the placed rest shape until the first

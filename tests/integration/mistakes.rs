@@ -267,3 +267,56 @@ fn reset_at_puts_the_cloth_at_rest_at_once() {
     let expected = ClothState::at_rest(c.model(), &at.affine());
     assert_eq!(c.state(), &expected, "the same frame shows the reset cloth");
 }
+
+/// Issue R: a state of another size, with pins and attachments, is a typed
+/// status (it panicked in the pinning), and `Cloth::restore` refuses it
+/// while keeping the cloth's own state.
+#[test]
+fn a_state_of_another_size_is_a_typed_error_with_pins_and_restore_refuses_it() {
+    let mut app = app();
+    // The lab cloth has its own pins (0 and 20); hand vertex 10 to another
+    // entity too.
+    let cloth = spawn_lab(&mut app, ImplicitSolver::default());
+    let holder = app.world_mut().spawn(Transform::default()).id();
+    app.world_mut()
+        .entity_mut(cloth)
+        .insert(ClothAttachments::new([Attachment::new(holder, [10])]));
+    run_steps(&mut app, 2);
+    let saved = app.world().get::<Cloth>(cloth).unwrap().state().clone();
+
+    // `restore` refuses a state of another size and keeps the cloth's.
+    let mut short = saved.clone();
+    short.positions.truncate(5);
+    short.velocities.truncate(5);
+    let mut c = app.world_mut().get_mut::<Cloth>(cloth).unwrap();
+    assert_eq!(
+        c.restore(short.clone()),
+        Err(StepError::StateMismatch {
+            expected: 441,
+            got: 5
+        })
+    );
+    assert_eq!(c.state(), &saved);
+
+    // Resized by hand: no panic, a typed status, no NaN anywhere.
+    c.state_mut().positions.truncate(5);
+    c.state_mut().velocities.truncate(5);
+    run_steps(&mut app, 3);
+    assert_eq!(
+        stats(&app, cloth).status,
+        ClothStatus::Invalid(StepError::StateMismatch {
+            expected: 441,
+            got: 5
+        })
+    );
+
+    // A state of the right size is taken, and the cloth runs from it.
+    let mut c = app.world_mut().get_mut::<Cloth>(cloth).unwrap();
+    assert_eq!(c.restore(saved.clone()), Ok(()));
+    assert_eq!(c.state(), &saved);
+    run_steps(&mut app, 3);
+    let s = stats(&app, cloth);
+    assert!(s.is_running(), "{:?}", s.status);
+    let c = app.world().get::<Cloth>(cloth).unwrap();
+    assert!(c.positions().iter().all(|p| p.is_finite()));
+}
