@@ -97,8 +97,8 @@
 //! | the lab's look, soft cloth (`k` up to ~1e4 at 30 Hz) | `chebyshev` |
 //! | stiffer cloth at interactive cost (`k` up to 1e6 at 30 Hz) | `pd` |
 //! | nearly inextensible cloth, small to mid-size | `pd-anderson` (37 of the map's 40 cells) |
-//! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; 1.7 ms at 21²) |
-//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (multigrid: 9.3 ms at 201²) |
+//! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; its cost per step: `docs/perf.md`) |
+//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (its multigrid global solve) |
 //! | the reference | `exact` |
 //!
 //! ## Collision
@@ -206,9 +206,9 @@
 //!   ([`ClothParams::parallel`] turns it off for a cloth).
 //! - The frame: the cloth systems run in [`ClothSchedule`], single-threaded,
 //!   from one exclusive system, and the `PostUpdate` pin-following system
-//!   runs only when a cloth's entity moved; one lab cloth adds its step and
-//!   2–13 µs (by run) to Bevy's frame, under either executor (`docs/perf.md`,
-//!   "The frame").
+//!   runs only when a cloth's entity moved, so one lab cloth adds little
+//!   more than its step to Bevy's frame, under either executor (measured in
+//!   `docs/perf.md`, "The frame").
 //! - `cargo run --release -p bevy_cloth_report -- --perf` writes
 //!   `docs/perf.md`: every method from 21² to 256² vertices, 100 cloths in
 //!   one app, sparse CG against its parts, the machine's limits, and the
@@ -375,9 +375,9 @@ pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
     ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation,
-    ClothStats, ClothStatus, ClothSystems, ContactResponse, CuboidCollider, DivergenceReason,
-    GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
-    SphereResponse, Wind, WindPlugin,
+    ClothStateMut, ClothStats, ClothStatus, ClothSystems, ContactResponse, CuboidCollider,
+    DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
+    SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ClothMethod, ClothWorkspace, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin,

@@ -117,12 +117,8 @@ fn write_cloth_meshes(
     for (cloth, mesh3d, global) in &cloths {
         let x = cloth.positions();
         // Never put a NaN into a mesh (the guard restores bad states, but a
-        // user may have written one by hand), nor a state of another size
-        // (the step reports it).
-        if x.is_empty()
-            || x.len() != cloth.model().vertex_count()
-            || !x.iter().all(|p| p.is_finite())
-        {
+        // user may have written one by hand).
+        if x.is_empty() || !x.iter().all(|p| p.is_finite()) {
             continue;
         }
         let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else {

@@ -141,8 +141,7 @@ pub(crate) fn hold_attached(
     } = &mut *memory;
     for (entity, mut cloth, mut attachments) in &mut cloths {
         let cloth = &mut *cloth;
-        // A state of the wrong size is left for the step to report.
-        if !cloth.initialized || !cloth.state_fits() {
+        if !cloth.initialized {
             continue;
         }
         let n = cloth.model.vertex_count();
@@ -258,11 +257,7 @@ pub(crate) fn follow_attached(
     helper: TransformHelper,
 ) {
     for (mut cloth, stats, attachments) in &mut cloths {
-        if !cloth.initialized
-            || !stats.is_running()
-            || cloth.attached.is_empty()
-            || !cloth.state_fits()
-        {
+        if !cloth.initialized || !stats.is_running() || cloth.attached.is_empty() {
             continue;
         }
         let cloth = &mut *cloth;

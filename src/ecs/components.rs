@@ -4,6 +4,7 @@ use core::time::Duration;
 
 use bevy::ecs::lifecycle::HookContext;
 use bevy::ecs::world::DeferredWorld;
+use bevy::math::Vec3A;
 use bevy::prelude::*;
 
 use crate::model::{ClothBuildError, ClothBuilder, ClothModel, ClothState};
@@ -98,6 +99,17 @@ fn place_on_insert(mut world: DeferredWorld, context: HookContext) {
     }
 }
 
+/// A cloth's positions and velocities to edit in place
+/// ([`Cloth::state_mut`]): one of each per vertex, a count that cannot
+/// change through them.
+#[derive(Debug)]
+pub struct ClothStateMut<'a> {
+    /// World-space vertex positions.
+    pub positions: &'a mut [Vec3A],
+    /// Vertex velocities.
+    pub velocities: &'a mut [Vec3A],
+}
+
 impl Cloth {
     /// A cloth of this model; it is placed at its entity's transform on the
     /// first fixed step.
@@ -127,15 +139,17 @@ impl Cloth {
         &self.state
     }
 
-    /// Mutable state, for teleporting or nudging vertices by hand. Changing
-    /// its length is caught by the solvers as a typed error
-    /// ([`ClothStatus::Invalid`] with [`StepError::StateMismatch`]); the
-    /// pins and attachments leave such a state alone. To put back a saved
-    /// state, [`restore`](Self::restore) checks it first.
+    /// The positions and velocities to edit in place, for teleporting or
+    /// nudging vertices by hand: one of each per vertex, a count that cannot
+    /// change here. To put back a whole saved state,
+    /// [`restore`](Self::restore) checks its size first.
     #[inline]
-    pub fn state_mut(&mut self) -> &mut ClothState {
+    pub fn state_mut(&mut self) -> ClothStateMut<'_> {
         self.measured = None;
-        &mut self.state
+        ClothStateMut {
+            positions: &mut self.state.positions,
+            velocities: &mut self.state.velocities,
+        }
     }
 
     /// Replaces the state with `state` (a saved one, say), if it is this
@@ -150,13 +164,6 @@ impl Cloth {
         self.initialized = true;
         self.placed_at = None;
         Ok(())
-    }
-
-    /// True when the state has one position and one velocity per vertex
-    /// (a state resized through [`state_mut`](Self::state_mut) has not).
-    pub(crate) fn state_fits(&self) -> bool {
-        let n = self.model.vertex_count();
-        self.state.positions.len() == n && self.state.velocities.len() == n
     }
 
     /// World-space vertex positions (the placed rest shape until the first

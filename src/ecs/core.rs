@@ -217,10 +217,6 @@ fn place_and_pin(
 /// positions; with `dt > 0`, their velocity becomes the displacement over
 /// `dt`.
 fn pin(cloth: &mut Cloth, affine: &bevy::math::Affine3A, dt: f32) {
-    // A state of the wrong size is left for the step to report.
-    if !cloth.state_fits() {
-        return;
-    }
     let rest = cloth.model.topology().rest_positions();
     for &p in &cloth.own_pins {
         // A vertex another entity holds follows that entity instead.

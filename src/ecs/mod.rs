@@ -74,7 +74,9 @@ pub use collision::{
 pub(crate) use collision::{
     project_cloths_on_shapes as project_after_shapes, project_running_cloths,
 };
-pub use components::{Cloth, ClothGuard, ClothParams, ClothStats, ClothStatus, GuardAction};
+pub use components::{
+    Cloth, ClothGuard, ClothParams, ClothStateMut, ClothStats, ClothStatus, GuardAction,
+};
 pub use core::{ClothCorePlugin, ClothMethods, ClothSimulation};
 pub use mesh_source::ClothFromMesh;
 pub use schedule::{ClothFollowSystems, ClothSchedule, ClothScheduleSystems, ClothSystems};

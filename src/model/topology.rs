@@ -58,8 +58,11 @@ pub struct Incidence {
 /// Solvers compute per-spring terms once, then each vertex *gathers* its own
 /// sum, so no two threads ever write the same vertex and the summation order
 /// is fixed (deterministic, no atomics).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub struct Adjacency {
+    /// Unique per built adjacency (clones share it: same contents), so a
+    /// workspace can tell that rows it copied are still these.
+    id: u64,
     offsets: Vec<u32>,
     incidences: Vec<Incidence>,
     /// The same rows as bare spring indices, each row split in two: the
@@ -73,6 +76,25 @@ pub struct Adjacency {
     /// padded to 4 each with the index `springs.len()` (a gather reads a
     /// zero term there). Fixed-length gathers: no loop bounds to predict.
     padded: Vec<[[u32; 4]; 2]>,
+}
+
+/// Equal contents (the id aside).
+impl PartialEq for Adjacency {
+    fn eq(&self, other: &Self) -> bool {
+        (
+            &self.offsets,
+            &self.incidences,
+            &self.signed,
+            &self.split,
+            &self.padded,
+        ) == (
+            &other.offsets,
+            &other.incidences,
+            &other.signed,
+            &other.split,
+            &other.padded,
+        )
+    }
 }
 
 impl Adjacency {
@@ -139,7 +161,9 @@ impl Adjacency {
             row[1][..end - mid].copy_from_slice(&signed[mid..end]);
             padded.push(row);
         }
+        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         Self {
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             offsets,
             incidences,
             signed,
@@ -154,6 +178,12 @@ impl Adjacency {
     #[inline]
     pub fn padded(&self) -> Option<&[[[u32; 4]; 2]]> {
         (!self.padded.is_empty()).then_some(&self.padded[..])
+    }
+
+    /// Unique per built adjacency, shared by its clones.
+    #[inline]
+    pub(crate) fn id(&self) -> u64 {
+        self.id
     }
 
     /// The springs of vertex `i` split by side: those that start at `i`

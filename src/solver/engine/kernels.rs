@@ -5,7 +5,7 @@ use core::ops::{Add, Mul, Sub};
 
 use bevy::math::{Mat4, Vec3A, Vec4};
 
-use crate::model::{ClothModel, Spring};
+use crate::model::{Adjacency, ClothModel, Spring};
 
 /// Vertices (or springs) per chunk of the chunked loops. Fixed, so that
 /// reductions over chunks give the same bits whatever the thread count.
@@ -267,24 +267,33 @@ pub(crate) struct PaddedRows {
     /// Every offset is `item_bytes·e` for an `e` below this.
     items: usize,
     item_bytes: usize,
+    /// The adjacency the rows were taken from (its id), if any.
+    source: Option<u64>,
 }
 
 impl PaddedRows {
-    /// Takes `rows` for items of type `T`, `items` of them (a padded row
-    /// holds spring indices and the pad `springs.len()`, so one item per
-    /// spring and one more for the pad). Leaves the rows empty, and returns
-    /// false, when an offset would not fit in `u32` (such a cloth runs the
+    /// Takes `adjacency`'s padded rows for items of type `T`, `items` of
+    /// them (a padded row holds spring indices and the pad `springs.len()`,
+    /// so one item per spring and one more for the pad), unless they are
+    /// already these. Leaves the rows empty when the adjacency has none, or
+    /// when an offset would not fit in `u32` (such a cloth runs the
     /// unpadded gathers).
     ///
     /// # Panics
-    /// If an index of `rows` is not below `items`.
-    pub(crate) fn fill<T>(&mut self, rows: &[[[u32; 4]; 2]], items: usize) -> bool {
+    /// If an index of the rows is not below `items`.
+    pub(crate) fn update<T>(&mut self, adjacency: &Adjacency, items: usize) {
         let bytes = std::mem::size_of::<T>();
+        if self.source == Some(adjacency.id()) && (self.items, self.item_bytes) == (items, bytes) {
+            return;
+        }
         self.rows.clear();
-        self.items = items;
-        self.item_bytes = bytes;
+        (self.items, self.item_bytes) = (items, bytes);
+        self.source = Some(adjacency.id());
+        let Some(rows) = adjacency.padded() else {
+            return;
+        };
         if items > (u32::MAX as usize) / bytes {
-            return false;
+            return;
         }
         let max = rows.iter().flatten().flatten().copied().max().unwrap_or(0);
         assert!(
@@ -294,12 +303,6 @@ impl PaddedRows {
         let b = bytes as u32;
         self.rows
             .extend(rows.iter().map(|r| r.map(|side| side.map(|e| e * b))));
-        true
-    }
-
-    /// Empties the rows.
-    pub(crate) fn clear(&mut self) {
-        self.rows.clear();
     }
 
     /// True when there are no rows.
@@ -416,7 +419,8 @@ mod tests {
     use crate::model::{ClothBuilder, ClothState};
     use crate::testing::noise;
 
-    /// The lab cloth's padded rows over one item per spring and the pad's.
+    /// The lab cloth and its padded rows (one item per spring and the
+    /// pad's).
     fn lab_rows() -> (ClothModel, Vec<[[u32; 4]; 2]>) {
         let model = ClothBuilder::lab().build().unwrap();
         let rows = model.topology().adjacency().padded().unwrap().to_vec();
@@ -431,7 +435,7 @@ mod tests {
         let mut items: Vec<Vec3A> = (0..springs).map(|_| noise(&mut seed)).collect();
         items.push(Vec3A::ZERO);
         let mut padded = PaddedRows::default();
-        assert!(padded.fill::<Vec3A>(&rows, springs + 1));
+        padded.update::<Vec3A>(model.topology().adjacency(), springs + 1);
         assert_eq!(padded.len(), rows.len());
         let gather = padded.gather(0..rows.len(), &items[..]);
         for (i, [p, m]) in rows.iter().enumerate() {
@@ -443,14 +447,22 @@ mod tests {
         // A range of rows counts from its start.
         let part = padded.gather(5..9, &items[..]).first(4);
         assert_eq!(part.sums(0, |t| *t, |t| *t), gather.sums(5, |t| *t, |t| *t));
+        // Another cloth's adjacency replaces them (the assignment's has no
+        // padded rows), and the lab's comes back.
+        let other = ClothBuilder::assignment(10, 10).build().unwrap();
+        padded.update::<Vec3A>(other.topology().adjacency(), 1000);
+        assert!(padded.is_empty());
+        padded.update::<Vec3A>(model.topology().adjacency(), springs + 1);
+        assert_eq!(padded.len(), rows.len());
     }
 
     #[test]
     #[should_panic(expected = "padded row index")]
     fn padded_rows_refuse_an_index_past_their_items() {
-        let (model, rows) = lab_rows();
+        let model = ClothBuilder::lab().build().unwrap();
         // One item short: the pad's index has nothing to read.
-        PaddedRows::default().fill::<Vec3A>(&rows, model.topology().springs().len());
+        let springs = model.topology().springs().len();
+        PaddedRows::default().update::<Vec3A>(model.topology().adjacency(), springs);
     }
 
     #[test]
@@ -459,7 +471,7 @@ mod tests {
         let (model, rows) = lab_rows();
         let springs = model.topology().springs().len();
         let mut padded = PaddedRows::default();
-        padded.fill::<Vec3A>(&rows, springs + 1);
+        padded.update::<Vec3A>(model.topology().adjacency(), springs + 1);
         let short = vec![Vec3A::ZERO; springs];
         padded.gather(0..rows.len(), &short[..]);
     }

@@ -156,10 +156,7 @@ impl Method for ImplicitSolver {
             // read.
             ws.gather.terms.clear();
             ws.gather.terms.resize(springs.len() + 1, Vec3A::ZERO);
-            ws.gather.rows.clear();
-            if let Some(rows) = adjacency.padded() {
-                ws.gather.rows.fill::<Vec3A>(rows, springs.len() + 1);
-            }
+            ws.gather.rows.update::<Vec3A>(adjacency, springs.len() + 1);
         }
         let ClothState {
             positions: x,

@@ -144,10 +144,7 @@ impl Method for PbdSolver {
         ws.inv_weight.clear();
         ws.inv_weight
             .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
-        ws.rows.clear();
-        if let Some(rows) = adjacency.padded() {
-            ws.rows.fill::<[Vec3A; 2]>(rows, springs.len() + 1);
-        }
+        ws.rows.update::<[Vec3A; 2]>(adjacency, springs.len() + 1);
         for _ in 0..config.iterations {
             let proposals = &mut ws.proposals;
             assert_eq!(x.len(), n);
