@@ -88,6 +88,7 @@
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
 //! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`: at most 10 iterations, stopping early once its estimated error is 1 % of the step's motion) or Anderson-accelerated (`pd-anderson`), factorised once (or a multigrid V-cycle per iteration on large cloths: [`GlobalSolve`]) | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search; to 1e-9 (`exact`) or on a budget of 16 iterations to 1e-5 (`newton`) | the reference | [`solver::exact`] |
+//! | [`XpbdSolver`] / [`XpbdPlugin`] | XPBD with small steps (`stiff`: 32 substeps of one Gauss–Seidel sweep), contacts projected in every substep | Macklin et al. 2016, 2019 | [`solver::xpbd`] |
 //!
 //! **Which preset for what** (from the stability map, the report and the
 //! perf page; the README has the numbers):
@@ -381,7 +382,7 @@ pub use ecs::{
 };
 pub use methods::{
     AnyMethod, ClothMethod, ClothWorkspace, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin,
-    MethodPlugin, PRESETS, PbdPlugin, Preset, ProjectivePlugin, SymplecticPlugin,
+    MethodPlugin, PRESETS, PbdPlugin, Preset, ProjectivePlugin, SymplecticPlugin, XpbdPlugin,
 };
 pub use solver::exact::ExactSolver;
 pub use solver::implicit::{ImplicitSolver, Rho};
@@ -389,6 +390,7 @@ pub use solver::linear::LinearImplicitSolver;
 pub use solver::pbd::PbdSolver;
 pub use solver::projective::{GlobalSolve, ProjectiveSolver};
 pub use solver::symplectic::SymplecticSolver;
+pub use solver::xpbd::XpbdSolver;
 
 /// Everything a game needs, in one import.
 pub mod prelude {
@@ -403,7 +405,7 @@ pub mod prelude {
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,
-        ProjectivePlugin, SymplecticPlugin,
+        ProjectivePlugin, SymplecticPlugin, XpbdPlugin,
     };
     pub use crate::model::{
         ClothBuildError, ClothBuilder, ClothModel, ClothState, mesh_vertices_where,
@@ -419,6 +421,7 @@ pub mod prelude {
     pub use crate::solver::pbd::PbdSolver;
     pub use crate::solver::projective::{GlobalSolve, ProjectiveSolver};
     pub use crate::solver::symplectic::SymplecticSolver;
+    pub use crate::solver::xpbd::XpbdSolver;
     pub use crate::solver::{Method, ParamError, SpringStiffness, StepParams};
 }
 
@@ -433,6 +436,7 @@ pub mod prelude {
 /// | [`LinearImplicitPlugin`] | Steps cloths with a [`LinearImplicitSolver`] (sparse CG or LDLᵀ). |
 /// | [`ProjectivePlugin`] | Steps cloths with a [`ProjectiveSolver`] (projective dynamics). |
 /// | [`ExactPlugin`] | Steps cloths with an [`ExactSolver`] (Newton to a gradient tolerance: the reference). |
+/// | [`XpbdPlugin`] | Steps cloths with an [`XpbdSolver`] (XPBD with small steps: `stiff`). |
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 /// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
 /// | [`WindPlugin`] | Per-triangle air drag and lift in a gusty [`Wind`], while that resource exists. |

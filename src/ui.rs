@@ -422,6 +422,7 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}
+        AnyMethod::Xpbd(x) => iterations_ui(ui, &mut x.substeps, "substeps (one sweep each)"),
         AnyMethod::Exact(x) => {
             let mut exponent = x.tolerance.log10();
             if ui

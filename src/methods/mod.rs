@@ -47,8 +47,9 @@ use crate::solver::linear::{CgConfig, LinearImplicitSolver, SpringJacobian};
 use crate::solver::pbd::PbdSolver;
 use crate::solver::projective::{PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW, ProjectiveSolver};
 use crate::solver::symplectic::SymplecticSolver;
+use crate::solver::xpbd::XpbdSolver;
 use crate::solver::{
-    LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepParams, StepReport,
+    LAB_ITERATIONS, LAB_RHO, Method, ParamError, StepError, StepInput, StepParams, StepReport,
 };
 
 /// Generates, from one line per method: the component impl, the plugin
@@ -118,6 +119,20 @@ macro_rules! method_table {
                 }
             }
 
+            /// [`step`](Self::step) with the whole [`StepInput`] (the
+            /// solids projected after the step included, which the `stiff`
+            /// method projects inside it).
+            pub fn step_with(
+                &self,
+                input: StepInput<'_>,
+                state: &mut ClothState,
+                ws: &mut AnyWorkspace,
+            ) -> Result<StepReport, StepError> {
+                match self {
+                    $( Self::$variant(m) => m.step_with(input, state, ws.get::<<$ty as Method>::Workspace>()), )*
+                }
+            }
+
             /// The [`TypeId`] of the settings type (the component), which
             /// [`ClothMethods`](crate::ClothMethods) lists once its plugin
             /// is added.
@@ -174,6 +189,8 @@ method_table! {
     Projective(ProjectiveSolver) => ProjectivePlugin;
     /// Exact implicit Euler: Newton to a gradient tolerance (the reference).
     Exact(ExactSolver) => ExactPlugin;
+    /// XPBD with small steps, contacts in every substep (the `stiff` preset).
+    Xpbd(XpbdSolver) => XpbdPlugin;
 }
 
 /// A named setting of a method: what the panel lists and `--method NAME`
@@ -199,8 +216,9 @@ impl Preset {
 /// implicit methods with compression-clamped spring blocks (the
 /// assignment's exact blocks make the lab cloth's matrix indefinite),
 /// projective dynamics (10 Chebyshev or 20 Anderson iterations), Newton on
-/// a budget ([`ExactSolver::BUDGET`]: 16 iterations, tolerance 1e-5), and
-/// the exact method at the reference tolerance.
+/// a budget ([`ExactSolver::BUDGET`]: 16 iterations, tolerance 1e-5),
+/// the exact method at the reference tolerance, and XPBD with 32 substeps
+/// ([`XpbdSolver::STIFF`], `stiff`).
 pub const PRESETS: &[Preset] = &[
     Preset {
         label: "Implicit (Jacobi)",
@@ -253,6 +271,10 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         label: "Exact implicit (Newton)",
         method: AnyMethod::Exact(ExactSolver::REFERENCE),
+    },
+    Preset {
+        label: "Stiff cloth (XPBD, 32 substeps)",
+        method: AnyMethod::Xpbd(XpbdSolver::STIFF),
     },
 ];
 

@@ -13,13 +13,13 @@ use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
 use bevy::reflect::GetTypeRegistration;
 
-use crate::collision::PenaltySphere;
+use crate::collision::{Capsule, PenaltySphere, Shape};
 use crate::ecs::{
     Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothMethods, ClothParams, ClothSchedule,
     ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
 };
 use crate::solver::guard::{GuardError, guarded_step};
-use crate::solver::{Method, StepError};
+use crate::solver::{Method, StepError, StepInput};
 
 /// A method as the ECS sees it: a [`Method`] settings type that is also a
 /// reflected component. Every method of the crate's table
@@ -53,6 +53,10 @@ pub struct ClothWorkspace<W: Default + Send + Sync + 'static> {
     /// This cloth's penalty spheres (contact distance includes its particle
     /// radius), refilled each step.
     penalty: Vec<PenaltySphere>,
+    /// The solids projected after the step, grown by this cloth's particle
+    /// radius, refilled each step for a method that projects them inside
+    /// it ([`StepInput::contacts`]).
+    contacts: Vec<Shape>,
 }
 
 /// The step systems of all methods.
@@ -245,7 +249,23 @@ fn step_cloths<M: ClothMethod>(
                 .chain(&colliders.penalty_shapes)
                 .map(|s| s.grown(particle_radius)),
         );
-        let (penalty, solver_ws) = (&ws.penalty, &mut ws.solver);
+        ws.contacts.clear();
+        ws.contacts.extend(
+            colliders
+                .projection
+                .iter()
+                .map(|s| {
+                    Shape::Capsule(Capsule {
+                        a: s.center,
+                        b: s.center,
+                        radius: s.radius,
+                        friction: s.friction,
+                    })
+                })
+                .chain(colliders.shapes.iter().copied())
+                .map(|s| s.grown(particle_radius)),
+        );
+        let (penalty, contacts, solver_ws) = (&ws.penalty, &ws.contacts, &mut ws.solver);
         let model = &cloth.model;
         let method = &*method;
         let start = Instant::now();
@@ -258,7 +278,15 @@ fn step_cloths<M: ClothMethod>(
             &mut cloth.state,
             &mut cloth.last_good,
             &params,
-            |state, p| method.step(model, state, p, penalty, solver_ws),
+            |state, p| {
+                let input = StepInput {
+                    model,
+                    params: p,
+                    spheres: penalty,
+                    contacts,
+                };
+                method.step_with(input, state, solver_ws)
+            },
         );
         let elapsed = start.elapsed();
         stats.method = method.name();

@@ -9,7 +9,7 @@
 use core::fmt::Debug;
 
 use super::params::{ParamError, StepError, StepParams, StepReport, check_state};
-use crate::collision::PenaltySphere;
+use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothModel, ClothState};
 
 /// The lab's iteration count (32) for the iterative methods' interactive
@@ -30,6 +30,13 @@ pub struct StepInput<'a> {
     /// Penalty spheres acting inside the step (contact distance includes
     /// the cloth's particle radius).
     pub spheres: &'a [PenaltySphere],
+    /// The solids that are projected out after the step (the projection
+    /// spheres as capsules of zero length, planes, capsules, boxes), grown
+    /// by the cloth's particle radius. A method that handles contacts
+    /// inside its step projects them there too (the `stiff` method, in
+    /// every substep); the others ignore them and leave them to the
+    /// projection after the step. Empty from [`Method::step`].
+    pub contacts: &'a [Shape],
 }
 
 /// A simulation method: settings that advance a [`ClothState`] by one step
@@ -95,14 +102,26 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
         spheres: &[PenaltySphere],
         workspace: &mut Self::Workspace,
     ) -> Result<StepReport, StepError> {
-        self.validate_params(params)?;
-        self.validate()?;
-        check_state(model, state)?;
         let input = StepInput {
             model,
             params,
             spheres,
+            contacts: &[],
         };
+        self.step_with(input, state, workspace)
+    }
+
+    /// [`step`](Self::step) with the whole [`StepInput`], the solids
+    /// projected after the step included (what the ECS plugin calls).
+    fn step_with(
+        &self,
+        input: StepInput<'_>,
+        state: &mut ClothState,
+        workspace: &mut Self::Workspace,
+    ) -> Result<StepReport, StepError> {
+        self.validate_params(input.params)?;
+        self.validate()?;
+        check_state(input.model, state)?;
         self.advance(input, state, workspace)
     }
 

@@ -16,11 +16,14 @@
 //! | [`LinearImplicitSolver`](linear::LinearImplicitSolver) | linearly implicit Euler (`A = M − h²K`), sparse CG or LDLᵀ | [`linear`] | the assignment |
 //! | [`ProjectiveSolver`](projective::ProjectiveSolver) | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev-accelerated | [`projective`] | Liu et al. 2013, Wang 2015 |
 //! | [`ExactSolver`](exact::ExactSolver) | exact implicit Euler: Newton + sparse Cholesky + line search (to 1e-9, or on a budget: `newton`) | [`exact`] | the reference |
+//! | [`XpbdSolver`](xpbd::XpbdSolver) | XPBD with small steps: substeps of one Gauss–Seidel sweep, contacts in every substep (`stiff`) | [`xpbd`] | Macklin et al. 2016, 2019 |
 //!
 //! Penalty spheres ([`PenaltySphere`](crate::collision::PenaltySphere)) act
 //! inside every step: as forces with their stiffness in the linear system
 //! (linearly implicit), in the gradient and diagonal (implicit Jacobi), or
-//! as explicit forces (symplectic, and PBD's velocity prediction).
+//! as explicit forces (symplectic, and PBD's and XPBD's velocity
+//! prediction). The solids projected after the step
+//! ([`StepInput::contacts`]) are projected inside every substep by XPBD.
 //!
 //! The divergence guard ([`guard`]) checks a step and retries it with
 //! halved time steps when it fails.
@@ -49,6 +52,7 @@ pub mod projective;
 #[doc(hidden)]
 pub mod springs;
 pub mod symplectic;
+pub mod xpbd;
 
 pub use engine::kernels::PARALLEL_MIN;
 pub use engine::simd::Simd;

@@ -50,6 +50,7 @@ impl Method for SymplecticSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let h = params.dt as f32;
         let gravity = Vec3A::from(params.gravity);

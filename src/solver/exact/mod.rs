@@ -138,6 +138,7 @@ impl Method for ExactSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let config = self;
         let n = model.vertex_count();

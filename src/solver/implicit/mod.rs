@@ -128,6 +128,7 @@ impl Method for ImplicitSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let config = self;
         let n = model.vertex_count();

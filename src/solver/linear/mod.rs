@@ -227,6 +227,7 @@ impl Method for LinearImplicitSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let config = self;
         ws.prepare(model);

@@ -91,6 +91,7 @@ impl Method for PbdSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let config = self;
         let n = model.vertex_count();

@@ -459,6 +459,7 @@ impl Method for ProjectiveSolver {
             model,
             params,
             spheres,
+            ..
         } = input;
         let free = model.vertex_count() - model.pins().len();
         ws.prepare(model, params, self.global.cycles(free, self.anderson > 0))?;

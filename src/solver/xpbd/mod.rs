@@ -1,0 +1,246 @@
+//! Extended position-based dynamics with small steps — the `stiff` method
+//! (Macklin, Müller, Chentanez 2016; Macklin, Storey, Lu et al. 2019).
+//!
+//! One step of length `dt` is `n` substeps of length `h = dt/n`. Each
+//! substep, for every free vertex `i`:
+//!
+//! 1. `vᵢ ← d^{1/n} vᵢ + h (g + f_c/mᵢ)` (`d` the step's damping, so the
+//!    step damps as the other methods do; `f_c` a penalty sphere's force),
+//!    `pᵢ ← xᵢ`, `xᵢ ← xᵢ + h vᵢ`;
+//! 2. one Gauss–Seidel sweep over the springs, colour by colour (a greedy
+//!    edge colouring: springs of one colour share no vertex): a spring
+//!    `(a, b)` of rest length `L`, stiffness `k`, violation `C = l − L`
+//!    moves its ends along `n = (xₐ − x_b)/l` by
+//!    `xₐ ← xₐ − wₐ C/(wₐ + w_b + α̃) n`, `x_b ← x_b + w_b C/(…) n`, with
+//!    `w = 1/m` (0 at a pin) and the compliance `α̃ = 1/(k h²)`: XPBD's
+//!    update with its multiplier starting at zero each substep (one
+//!    iteration per substep, as Macklin et al. 2019 recommend);
+//! 3. every vertex inside a solid of [`StepInput::contacts`] is moved to its
+//!    surface, with position-based Coulomb friction: of its tangential motion
+//!    over the substep, up to `μ` times the depth is taken back (all of it:
+//!    static friction);
+//! 4. `vᵢ ← (xᵢ − pᵢ)/h`.
+//!
+//! Soft springs (`α̃ ≫ w`) move by about `h² k C/m`, an explicit spring
+//! force at the substep; stiff ones (`α̃ ≪ w`) are projected to their rest
+//! length, so stiffness costs nothing in stability. What one sweep leaves
+//! undone shrinks with the substep: the substep count is the method's one
+//! knob (its "iterations"). It does not minimise the implicit-Euler
+//! objective, so it reports no convergence measure; it is judged against
+//! the physical reference on the stability map (`docs/report/stability.md`).
+//!
+//! Contacts act inside every substep, so stiff cloth on a collider is not
+//! strained by a projection after the step. The other methods leave the
+//! same solids to the projection after the step (which then finds nothing
+//! left to do here).
+
+mod colouring;
+#[cfg(test)]
+mod tests;
+
+use bevy::math::Vec3A;
+use bevy::reflect::Reflect;
+use bevy::reflect::std_traits::ReflectDefault;
+
+use self::colouring::{Colouring, Link};
+use super::{Method, ParamError, StepError, StepInput, StepReport};
+use crate::collision::Shape;
+use crate::model::ClothState;
+
+/// Steps a cloth by XPBD with small steps: `substeps` substeps of one
+/// Gauss–Seidel sweep each, contacts projected in every substep (see the
+/// module docs). Right for stiff cloth at a game's frame rate. As a
+/// component on a cloth entity it selects this method
+/// ([`XpbdPlugin`](crate::XpbdPlugin)); its preset is `stiff`.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Default, Debug, PartialEq)]
+pub struct XpbdSolver {
+    /// Substeps per step, one sweep over the springs each.
+    pub substeps: u32,
+}
+
+impl XpbdSolver {
+    /// The `stiff` preset: 32 substeps (as many spring passes as the lab's
+    /// 32 Chebyshev iterations).
+    pub const STIFF: Self = Self::new(32);
+
+    /// With `substeps` substeps per step.
+    pub const fn new(substeps: u32) -> Self {
+        Self { substeps }
+    }
+}
+
+impl Default for XpbdSolver {
+    /// [`XpbdSolver::STIFF`].
+    fn default() -> Self {
+        Self::STIFF
+    }
+}
+
+impl Method for XpbdSolver {
+    type Workspace = XpbdWorkspace;
+
+    fn name(&self) -> &'static str {
+        "stiff"
+    }
+
+    fn iterations_mut(&mut self) -> Option<&mut u32> {
+        Some(&mut self.substeps)
+    }
+
+    fn validate(&self) -> Result<(), ParamError> {
+        if self.substeps == 0 {
+            return Err(ParamError::Iterations);
+        }
+        Ok(())
+    }
+
+    /// Advances `state` by `substeps` XPBD substeps (see the module docs).
+    fn advance(
+        &self,
+        input: StepInput<'_>,
+        state: &mut ClothState,
+        ws: &mut XpbdWorkspace,
+    ) -> Result<StepReport, StepError> {
+        let StepInput {
+            model,
+            params,
+            spheres,
+            contacts,
+        } = input;
+        let n = model.vertex_count();
+        let substeps = self.substeps;
+        let h = (params.dt / f64::from(substeps)) as f32;
+        let inv_h = 1.0 / h;
+        let damping = params.damping.powf(1.0 / substeps as f32);
+        let gravity = Vec3A::from(params.gravity);
+        let pinned = model.pinned();
+        let masses = model.masses();
+
+        ws.colouring.update(model);
+        let springs = model.topology().springs();
+        let k = params.stiffness.as_array();
+        let inv_h2 = f64::from(inv_h) * f64::from(inv_h);
+        let weight = |i: u32| {
+            if pinned[i as usize] {
+                0.0
+            } else {
+                1.0 / masses[i as usize]
+            }
+        };
+        ws.links.clear();
+        ws.links.extend(ws.colouring.order.iter().map(|&e| {
+            let s = springs[e as usize];
+            let (wa, wb) = (weight(s.a), weight(s.b));
+            let compliance = (inv_h2 / f64::from(k[s.kind as usize])) as f32;
+            let total = wa + wb + compliance;
+            let (share_a, share_b) = if total > 0.0 {
+                (wa / total, wb / total)
+            } else {
+                (0.0, 0.0)
+            };
+            Link {
+                a: s.a,
+                b: s.b,
+                rest: s.rest_length,
+                share_a,
+                share_b,
+            }
+        }));
+        let ClothState {
+            positions: x,
+            velocities: v,
+        } = state;
+        let (x, v) = (&mut x[..n], &mut v[..n]);
+        ws.previous.clear();
+        ws.previous.extend_from_slice(x);
+        let prev = &mut ws.previous[..n];
+
+        for _ in 0..substeps {
+            for i in 0..n {
+                if pinned[i] {
+                    continue;
+                }
+                let mut accel = gravity;
+                for sphere in spheres {
+                    if let Some(contact) = sphere.contact(x[i]) {
+                        accel += contact.force / masses[i];
+                    }
+                }
+                v[i] = v[i] * damping + h * accel;
+                prev[i] = x[i];
+                x[i] += h * v[i];
+            }
+            sweep(&ws.links, x);
+            if !contacts.is_empty() {
+                for i in 0..n {
+                    if !pinned[i] {
+                        project(&mut x[i], prev[i], contacts);
+                    }
+                }
+            }
+            for i in 0..n {
+                if !pinned[i] {
+                    v[i] = (x[i] - prev[i]) * inv_h;
+                }
+            }
+        }
+        Ok(StepReport {
+            iterations: substeps,
+            residual: None,
+            relative_error: None,
+        })
+    }
+}
+
+/// One Gauss–Seidel sweep over `links` (in colour order).
+fn sweep(links: &[Link], x: &mut [Vec3A]) {
+    for link in links {
+        let (a, b) = (link.a as usize, link.b as usize);
+        let d = x[a] - x[b];
+        let l = d.length();
+        if l > 0.0 {
+            let correction = d * ((l - link.rest) / l);
+            x[a] -= link.share_a * correction;
+            x[b] += link.share_b * correction;
+        }
+    }
+}
+
+/// Moves `x` out of every solid it is inside, with position-based Coulomb
+/// friction on its motion since `prev` (the substep's start).
+fn project(x: &mut Vec3A, prev: Vec3A, contacts: &[Shape]) {
+    for shape in contacts {
+        let Some((normal, depth)) = shape.contact(*x, 0.0) else {
+            continue;
+        };
+        *x += depth * normal;
+        let mu = shape.friction();
+        if mu > 0.0 {
+            let moved = *x - prev;
+            let tangential = moved - moved.dot(normal) * normal;
+            let length = tangential.length();
+            if length > 0.0 {
+                *x -= tangential * ((mu * depth).min(length) / length);
+            }
+        }
+    }
+}
+
+/// Scratch buffers of the XPBD solver, sized on first use.
+#[derive(Clone, Debug, Default)]
+pub struct XpbdWorkspace {
+    /// The springs in colour order (taken once per topology).
+    colouring: Colouring,
+    /// Per spring in colour order: ends, rest length and shares (per step).
+    links: Vec<Link>,
+    /// Per vertex, its position at the substep's start.
+    previous: Vec<Vec3A>,
+}
+
+impl XpbdWorkspace {
+    /// The number of spring colours of the last cloth stepped.
+    pub fn colours(&self) -> usize {
+        self.colouring.count()
+    }
+}

@@ -1,0 +1,280 @@
+use bevy::math::{Affine3A, Vec3, Vec3A};
+
+use super::*;
+use crate::collision::{Capsule, Plane};
+use crate::model::{ClothBuilder, ClothModel};
+use crate::solver::exact::ExactSolver;
+use crate::solver::{SpringStiffness, StepParams, max_stretch};
+use crate::testing::run_from_rest;
+
+fn lab() -> ClothModel {
+    ClothBuilder::lab().build().unwrap()
+}
+
+fn stiff(k: f32, dt: f64) -> StepParams {
+    StepParams {
+        dt,
+        stiffness: SpringStiffness::uniform(k),
+        ..StepParams::LAB
+    }
+}
+
+/// `model` from rest after `steps` steps of `method` with `contacts`
+/// projected inside them.
+fn run_with_contacts(
+    method: XpbdSolver,
+    model: &ClothModel,
+    params: &StepParams,
+    contacts: &[Shape],
+    steps: usize,
+    mut each: impl FnMut(&ClothState),
+) -> ClothState {
+    let mut state = ClothState::at_rest(model, &Affine3A::IDENTITY);
+    let mut ws = XpbdWorkspace::default();
+    for _ in 0..steps {
+        let input = StepInput {
+            model,
+            params,
+            spheres: &[],
+            contacts,
+        };
+        method.step_with(input, &mut state, &mut ws).unwrap();
+        each(&state);
+    }
+    state
+}
+
+#[test]
+fn colours_share_no_vertex_and_hold_every_spring_once() {
+    let model = ClothBuilder::lab_grid(9)
+        .with_shear_springs()
+        .with_bending_springs()
+        .build()
+        .unwrap();
+    let mut colouring = Colouring::default();
+    colouring.update(&model);
+    let springs = model.topology().springs();
+    let mut seen = colouring.order.clone();
+    seen.sort_unstable();
+    assert_eq!(seen, (0..springs.len() as u32).collect::<Vec<_>>());
+    // A grid vertex has at most 12 springs: greedy needs at most 23
+    // colours, and a grid far fewer.
+    assert!(
+        (2..=23).contains(&colouring.count()),
+        "{}",
+        colouring.count()
+    );
+    for c in 0..colouring.count() {
+        let mut ends: Vec<u32> = colouring.order[colouring.colours[c]..colouring.colours[c + 1]]
+            .iter()
+            .flat_map(|&e| [springs[e as usize].a, springs[e as usize].b])
+            .collect();
+        let len = ends.len();
+        ends.sort_unstable();
+        ends.dedup();
+        assert_eq!(ends.len(), len, "colour {c} has springs sharing a vertex");
+    }
+}
+
+#[test]
+fn a_cloth_at_rest_falls_as_symplectic_euler_at_the_substep() {
+    // No pins, springs at rest length all along (every vertex moves alike):
+    // n substeps of h give y = −g h² n(n+1)/2 and v = −g h n.
+    let model = ClothBuilder::lab_grid(5).build().unwrap();
+    let params = StepParams {
+        damping: 1.0,
+        ..stiff(1e6, 0.02)
+    };
+    let n = 8;
+    let state = run_from_rest(&XpbdSolver::new(n), &model, &params, &[], 1);
+    let h = 0.02 / f64::from(n);
+    let g = 9.8;
+    let drop = g * h * h * f64::from(n * (n + 1)) / 2.0;
+    for (x, v) in state.positions.iter().zip(&state.velocities) {
+        assert!((f64::from(x.y) + drop).abs() < 1e-5, "{x} against {drop}");
+        assert!((f64::from(v.y) + g * h * f64::from(n)).abs() < 1e-4, "{v}");
+        assert!(x.x.is_finite() && v.x.abs() < 1e-4 && v.z.abs() < 1e-4);
+    }
+}
+
+#[test]
+fn stiff_cloth_hangs_nearly_inextensible_and_pins_stay() {
+    // k = 1e6 at a game's 60 Hz: Chebyshev and pd stop converging here (the
+    // stability map), Newton holds the stretch to a fraction of a percent.
+    let model = lab();
+    let params = stiff(1e6, 1.0 / 60.0);
+    let rest = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let state = run_from_rest(&XpbdSolver::STIFF, &model, &params, &[], 120);
+    let stretch = max_stretch(&model, &state.positions);
+    let newton = run_from_rest(&ExactSolver::BUDGET, &model, &params, &[], 120);
+    let reference = max_stretch(&model, &newton.positions);
+    assert!(stretch < 0.02, "stretch {stretch} (newton {reference})");
+    for &p in model.pins() {
+        assert_eq!(state.positions[p as usize], rest.positions[p as usize]);
+    }
+    // It fell: the far edge is metres below the pins, as Newton's.
+    let low = |s: &ClothState| s.positions.iter().map(|x| x.y).fold(f32::MAX, f32::min);
+    assert!(low(&state) < -8.0 && (low(&state) - low(&newton)).abs() < 1.0);
+}
+
+#[test]
+fn extreme_stiffness_and_mass_stay_finite_and_bounded() {
+    for (k, mass) in [(1e8f32, 1.0f32), (1e6, 1e-3), (1.0, 1.0)] {
+        let model = ClothBuilder::lab()
+            .with_mass_per_vertex(mass)
+            .build()
+            .unwrap();
+        let params = stiff(k, 1.0 / 30.0);
+        let state = run_from_rest(&XpbdSolver::STIFF, &model, &params, &[], 60);
+        let stretch = max_stretch(&model, &state.positions);
+        assert!(stretch.is_finite(), "k {k}, mass {mass}");
+        // Soft springs stretch under the cloth's weight, stiff ones do not.
+        if k >= 1e6 {
+            assert!(stretch < 0.05, "k {k}, mass {mass}: {stretch}");
+        }
+        let speed = state
+            .velocities
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f32::max);
+        assert!(speed < 50.0, "k {k}, mass {mass}: {speed} m/s");
+    }
+}
+
+#[test]
+fn contacts_are_projected_inside_every_substep() {
+    // The lab cloth swings down onto a sphere in front of its pinned edge
+    // (z = 5) and piles on the ground below: after every step no vertex is
+    // inside either, and stiff cloth is not strained by them.
+    let model = lab();
+    let params = stiff(1e6, 1.0 / 30.0);
+    let sphere = Shape::Capsule(Capsule {
+        a: Vec3A::new(0.0, -4.0, 6.5),
+        b: Vec3A::new(0.0, -4.0, 6.5),
+        radius: 2.7,
+        friction: 0.0,
+    });
+    let ground = Shape::Plane(Plane {
+        point: Vec3A::new(0.0, -8.0, 0.0),
+        normal: Vec3A::Y,
+        friction: 0.5,
+    });
+    let free = run_from_rest(&XpbdSolver::STIFF, &model, &params, &[], 90);
+    let mut inside = 0;
+    let state = run_with_contacts(
+        XpbdSolver::STIFF,
+        &model,
+        &params,
+        &[sphere, ground],
+        90,
+        |s| {
+            inside += s
+                .positions
+                .iter()
+                .filter(|&&x| {
+                    sphere.contact(x, -1e-3).is_some() || ground.contact(x, -1e-3).is_some()
+                })
+                .count();
+        },
+    );
+    assert_eq!(inside, 0);
+    // It touches both: some vertex rests on each.
+    let touching = |shape: &Shape| {
+        state
+            .positions
+            .iter()
+            .filter(|&&x| shape.contact(x, 1e-2).is_some())
+            .count()
+    };
+    assert!(touching(&sphere) > 0 && touching(&ground) > 0);
+    let (in_contact, hanging) = (
+        max_stretch(&model, &state.positions),
+        max_stretch(&model, &free.positions),
+    );
+    assert!(
+        in_contact < hanging + 0.01,
+        "in contact {in_contact}, hanging {hanging}"
+    );
+}
+
+#[test]
+fn friction_holds_a_cloth_on_a_slope_that_a_frictionless_one_slides_down() {
+    // A small free cloth laid on a 20° slope, a millimetre above it:
+    // μ = 0.5 > tan 20° holds it.
+    let angle = 20f32.to_radians();
+    let normal = Vec3A::new(-angle.sin(), angle.cos(), 0.0);
+    let down_slope = Vec3::new(-angle.cos(), -angle.sin(), 0.0);
+    let origin = 1e-3 * Vec3::from(normal);
+    let model = ClothBuilder::grid(
+        5,
+        5,
+        origin,
+        origin + 2.0 * down_slope,
+        origin + 2.0 * Vec3::Z,
+    )
+    .build()
+    .unwrap();
+    let params = StepParams {
+        damping: 1.0,
+        ..stiff(1e5, 1.0 / 60.0)
+    };
+    let slide = |friction: f32| {
+        let slope = Shape::Plane(Plane {
+            point: Vec3A::ZERO,
+            normal,
+            friction,
+        });
+        let end = run_with_contacts(XpbdSolver::STIFF, &model, &params, &[slope], 60, |_| {});
+        let rest = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let moved: Vec3A = end
+            .positions
+            .iter()
+            .zip(&rest.positions)
+            .map(|(x, r)| *x - *r)
+            .sum();
+        moved / end.positions.len() as f32
+    };
+    // One second: a frictionless cloth slides g sin 20° t²/2 ≈ 1.7 m.
+    let (held, slid) = (slide(0.5), slide(0.0));
+    // It falls the millimetre straight down (0.36 mm along the slope) and
+    // sticks there.
+    let settled = held - held.dot(normal) * normal;
+    assert!(settled.length() < 4e-4, "held cloth moved {held}");
+    let along = slid.dot(Vec3A::from(down_slope));
+    assert!(
+        (along - 1.68).abs() < 0.1,
+        "frictionless cloth moved {slid}"
+    );
+    assert!(slid.dot(normal).abs() < 1e-2, "it left the slope: {slid}");
+}
+
+#[test]
+fn runs_are_bitwise_repeatable_and_zero_substeps_are_refused() {
+    let model = lab();
+    let params = stiff(1e7, 1.0 / 60.0);
+    let a = run_from_rest(&XpbdSolver::STIFF, &model, &params, &[], 30);
+    let b = run_from_rest(&XpbdSolver::STIFF, &model, &params, &[], 30);
+    assert_eq!(a.positions, b.positions);
+    assert_eq!(a.velocities, b.velocities);
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let before = state.clone();
+    let refused = XpbdSolver::new(0).step(
+        &model,
+        &mut state,
+        &params,
+        &[],
+        &mut XpbdWorkspace::default(),
+    );
+    assert_eq!(refused, Err(StepError::Params(ParamError::Iterations)));
+    assert_eq!(state, before);
+    let nan = StepParams {
+        stiffness: SpringStiffness::uniform(f32::NAN),
+        ..params
+    };
+    assert!(
+        XpbdSolver::STIFF
+            .step(&model, &mut state, &nan, &[], &mut XpbdWorkspace::default())
+            .is_err()
+    );
+    assert_eq!(state, before);
+}
