@@ -11,7 +11,7 @@
 //!
 //! Methods: the preset names of `bevy_cloth::methods::PRESETS` (`jacobi`,
 //! also `implicit`, `chebyshev`, `chebyshev-auto`, `pbd`, `symplectic`,
-//! `linear-cg`, `linear-direct`, `pd`, `pd-anderson`, `newton`, `exact`), at
+//! `linear-cg`, `linear-direct`, `pd`, `pd-anderson`, `newton`, `exact`, `stiff`), at
 //! their interactive settings;
 //! `--iterations` and `--rho` change them. Every method runs on every scene.
 //!
@@ -55,7 +55,7 @@ use bevy_cloth::prelude::*;
 use cli::{CliError, Long, Parser, Short, value};
 
 const USAGE: &str = "usage: headless [--scene lab|assignment] \
-[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] [--n N] [--rows R] \
+[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact|stiff] [--n N] [--rows R] \
 [--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
 [--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] \
 [--dump FILE.csv] [--compute-threads N]";

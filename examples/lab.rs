@@ -26,7 +26,7 @@ use bevy_cloth::ui::ClothResolution;
 use cli::{CliError, Long, Parser, Short, value};
 use common::{ScreenshotArgs, ScreenshotMode};
 
-const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact] \
+const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact|stiff] \
 [--n N] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]

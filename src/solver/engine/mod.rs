@@ -10,6 +10,8 @@
 //!   iteration, symplectic Euler, projective dynamics' local step and PBD's
 //!   strain limiting, for cloths whose springs form a
 //!   [`Stencil`](crate::model::ClothTopology);
+//! - `sweep`: XPBD's Gauss–Seidel sweep over coloured springs, batched
+//!   within a colour;
 //! - `cholesky`, `lane_factor`, `supernodal`: the sparse factorisation the
 //!   direct methods share and its two triangular-solve layouts.
 //!
@@ -23,3 +25,4 @@ pub(crate) mod phases;
 pub mod simd;
 pub(crate) mod stencil;
 pub(crate) mod supernodal;
+pub(crate) mod sweep;

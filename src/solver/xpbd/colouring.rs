@@ -3,17 +3,25 @@
 
 use crate::model::ClothModel;
 
-/// A spring as the substep's Gauss–Seidel sweep reads it: its ends, its
-/// rest length, and how much of its violation each end takes
-/// (`wₐ/(wₐ + w_b + α̃)` and `w_b/(…)`, with `w` the inverse masses, zero at
-/// a pin, and `α̃ = 1/(k h²)` the compliance over the substep squared).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(crate) struct Link {
-    pub(crate) a: u32,
-    pub(crate) b: u32,
-    pub(crate) rest: f32,
-    pub(crate) share_a: f32,
-    pub(crate) share_b: f32,
+/// The springs as the substep's Gauss–Seidel sweep reads them, in colour
+/// order, by field: ends, rest lengths, and how much of its violation each
+/// end takes (`wₐ/(wₐ + w_b + α̃)` and `w_b/(…)`, with `w` the inverse
+/// masses, zero at a pin, and `α̃ = 1/(k h²)` the compliance over the
+/// substep squared).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Links {
+    pub(crate) ends: Vec<[u32; 2]>,
+    pub(crate) rest: Vec<f32>,
+    pub(crate) shares: Vec<[f32; 2]>,
+}
+
+impl Links {
+    /// Empties every field.
+    pub(crate) fn clear(&mut self) {
+        self.ends.clear();
+        self.rest.clear();
+        self.shares.clear();
+    }
 }
 
 /// The model's springs ordered by colour (a greedy edge colouring in spring

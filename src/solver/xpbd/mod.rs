@@ -42,10 +42,11 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use self::colouring::{Colouring, Link};
+use self::colouring::{Colouring, Links};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::collision::Shape;
 use crate::model::ClothState;
+use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
 /// Steps a cloth by XPBD with small steps: `substeps` substeps of one
 /// Gauss–Seidel sweep each, contacts projected in every substep (see the
@@ -129,24 +130,20 @@ impl Method for XpbdSolver {
             }
         };
         ws.links.clear();
-        ws.links.extend(ws.colouring.order.iter().map(|&e| {
+        for &e in &ws.colouring.order {
             let s = springs[e as usize];
             let (wa, wb) = (weight(s.a), weight(s.b));
             let compliance = (inv_h2 / f64::from(k[s.kind as usize])) as f32;
             let total = wa + wb + compliance;
-            let (share_a, share_b) = if total > 0.0 {
-                (wa / total, wb / total)
+            let shares = if total > 0.0 {
+                [wa / total, wb / total]
             } else {
-                (0.0, 0.0)
+                [0.0, 0.0]
             };
-            Link {
-                a: s.a,
-                b: s.b,
-                rest: s.rest_length,
-                share_a,
-                share_b,
-            }
-        }));
+            ws.links.ends.push([s.a, s.b]);
+            ws.links.rest.push(s.rest_length);
+            ws.links.shares.push(shares);
+        }
         let ClothState {
             positions: x,
             velocities: v,
@@ -156,34 +153,47 @@ impl Method for XpbdSolver {
         ws.previous.extend_from_slice(x);
         let prev = &mut ws.previous[..n];
 
-        for _ in 0..substeps {
-            for i in 0..n {
-                if pinned[i] {
-                    continue;
-                }
-                let mut accel = gravity;
-                for sphere in spheres {
-                    if let Some(contact) = sphere.contact(x[i]) {
-                        accel += contact.force / masses[i];
+        ws.bounds.clear();
+        ws.bounds.extend(contacts.iter().map(bound));
+        let solids = (contacts, &ws.bounds[..]);
+        // Each pass over the vertices ends one substep (contacts, velocity)
+        // and begins the next (prediction), so each substep reads them once.
+        let pass =
+            |x: &mut [Vec3A], v: &mut [Vec3A], prev: &mut [Vec3A], end: bool, begin: bool| {
+                let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
+                for (((x, v), p), (&pinned, &mass)) in vertices.zip(pinned.iter().zip(masses)) {
+                    if pinned {
+                        continue;
+                    }
+                    if end {
+                        if !contacts.is_empty() {
+                            project(x, *p, solids);
+                        }
+                        *v = (*x - *p) * inv_h;
+                    }
+                    if begin {
+                        let mut accel = gravity;
+                        for sphere in spheres {
+                            if let Some(contact) = sphere.contact(*x) {
+                                accel += contact.force / mass;
+                            }
+                        }
+                        *v = *v * damping + h * accel;
+                        *p = *x;
+                        *x += h * *v;
                     }
                 }
-                v[i] = v[i] * damping + h * accel;
-                prev[i] = x[i];
-                x[i] += h * v[i];
-            }
-            sweep(&ws.links, x);
-            if !contacts.is_empty() {
-                for i in 0..n {
-                    if !pinned[i] {
-                        project(&mut x[i], prev[i], contacts);
-                    }
-                }
-            }
-            for i in 0..n {
-                if !pinned[i] {
-                    v[i] = (x[i] - prev[i]) * inv_h;
-                }
-            }
+            };
+        pass(x, v, prev, false, true);
+        for substep in 1..=substeps {
+            let springs = ColouredSprings {
+                ends: &ws.links.ends,
+                rest: &ws.links.rest,
+                shares: &ws.links.shares,
+                colours: &ws.colouring.colours,
+            };
+            sweep(params.simd, springs, x);
+            pass(x, v, prev, true, substep < substeps);
         }
         Ok(StepReport {
             iterations: substeps,
@@ -193,24 +203,31 @@ impl Method for XpbdSolver {
     }
 }
 
-/// One Gauss–Seidel sweep over `links` (in colour order).
-fn sweep(links: &[Link], x: &mut [Vec3A]) {
-    for link in links {
-        let (a, b) = (link.a as usize, link.b as usize);
-        let d = x[a] - x[b];
-        let l = d.length();
-        if l > 0.0 {
-            let correction = d * ((l - link.rest) / l);
-            x[a] -= link.share_a * correction;
-            x[b] += link.share_b * correction;
+/// A solid's quick test: see [`bound`].
+type Bound = Option<(Vec3A, f32)>;
+
+/// A sphere around a solid (centre and squared radius) that a point must be
+/// inside to touch it: a quick test before the exact one; `None` for a
+/// plane.
+fn bound(shape: &Shape) -> Bound {
+    match *shape {
+        Shape::Plane(_) => None,
+        Shape::Capsule(c) => {
+            let r = 0.5 * c.a.distance(c.b) + c.radius;
+            Some((0.5 * (c.a + c.b), r * r * 1.0001))
         }
+        Shape::Cuboid(b) => Some((b.center, b.half_extents.length_squared() * 1.0001)),
     }
 }
 
 /// Moves `x` out of every solid it is inside, with position-based Coulomb
-/// friction on its motion since `prev` (the substep's start).
-fn project(x: &mut Vec3A, prev: Vec3A, contacts: &[Shape]) {
-    for shape in contacts {
+/// friction on its motion since `prev` (the substep's start). `solids` are
+/// the shapes and their [`bound`]s.
+fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) {
+    for (shape, bound) in shapes.iter().zip(bounds) {
+        if bound.is_some_and(|(centre, r2)| x.distance_squared(centre) > r2) {
+            continue;
+        }
         let Some((normal, depth)) = shape.contact(*x, 0.0) else {
             continue;
         };
@@ -233,9 +250,11 @@ pub struct XpbdWorkspace {
     /// The springs in colour order (taken once per topology).
     colouring: Colouring,
     /// Per spring in colour order: ends, rest length and shares (per step).
-    links: Vec<Link>,
+    links: Links,
     /// Per vertex, its position at the substep's start.
     previous: Vec<Vec3A>,
+    /// Per solid of the step's contacts, its quick test ([`bound`]).
+    bounds: Vec<Bound>,
 }
 
 impl XpbdWorkspace {
