@@ -3,8 +3,15 @@
 //! dragged with the mouse, and a panel to switch methods and tune them live.
 //!
 //! ```text
-//! cargo run --example lab -- [--method M] [--n 21] [--screenshot out.png --frames 120]
+//! cargo run --example lab -- [--scene lab|stiff-fabric] [--method M] [--n 21] \
+//!     [--screenshot out.png --frames 120]
 //! ```
+//!
+//! Two scenes, also buttons in the panel: `lab` (the default), the Unity
+//! lab's cloth as it is (`k = 8000`: it stretches about a third where it
+//! drapes), and `stiff-fabric`, the same cloth as a woven fabric (`k = 1e7`,
+//! the `stiff` method: it drapes stretched by about 1 %). `--method`
+//! replaces the scene's method.
 //!
 //! Mouse: drag empty space to orbit, right-drag to pan, wheel to zoom; press
 //! on the sphere and drag to move it. Keys: space pauses, `h` steps once, `r`
@@ -22,32 +29,63 @@ use bevy::prelude::*;
 use bevy_cloth::drag::Draggable;
 use bevy_cloth::prelude::*;
 use bevy_cloth::render::cloth_mesh;
-use bevy_cloth::ui::ClothResolution;
+use bevy_cloth::ui::{ClothResolution, ClothScene, ClothScenes};
 use cli::{CliError, Long, Parser, Short, value};
 use common::{ScreenshotArgs, ScreenshotMode};
 
-const USAGE: &str = "usage: lab [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact|stiff] \
+const USAGE: &str = "usage: lab [--scene lab|stiff-fabric] [--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact|stiff] \
 [--n N] [--screenshot FILE.png --frames N]";
 
 #[derive(Resource, Clone, Copy)]
 struct LabOptions {
-    method: AnyMethod,
+    scene: ClothScene,
+    method: Option<AnyMethod>,
     n: u32,
 }
+
+/// The lab's scenes: the faithful one and the stiff fabric.
+fn scenes() -> [ClothScene; 2] {
+    let preset = |name| bevy_cloth::methods::preset(name).expect("a preset").method;
+    [
+        ClothScene {
+            label: "Lab (faithful)",
+            about: "the Unity lab's cloth: k = 8000, Chebyshev 32",
+            params: ClothParams::default(),
+            method: preset("chebyshev"),
+        },
+        ClothScene {
+            label: "Stiff fabric",
+            about: "k = 1e7 with the stiff method (XPBD, 32 substeps): drapes stretched about 1 %",
+            params: ClothParams::default().with_stiffness(STIFF_FABRIC_K),
+            method: preset("stiff"),
+        },
+    ]
+}
+
+/// The stiff fabric's spring stiffness: its cloth drapes on the sphere
+/// stretched by about 1 % with the `stiff` method (`docs/measurements.md`).
+const STIFF_FABRIC_K: f32 = 1e7;
 
 fn parse(mut parser: Parser) -> Result<(LabOptions, Option<ScreenshotMode>), CliError> {
     let mut screenshot = ScreenshotArgs::default();
     let mut options = LabOptions {
-        method: bevy_cloth::methods::preset("chebyshev")
-            .expect("a preset")
-            .method,
+        scene: scenes()[0],
+        method: None,
         n: 21,
     };
     while let Some(arg) = parser.next()? {
         match arg {
             Long("screenshot") => screenshot.set_path(&mut parser)?,
             Long("frames") => screenshot.set_frames(&mut parser)?,
-            Long("method") => options.method = value(&mut parser, "--method")?,
+            Long("method") => options.method = Some(value(&mut parser, "--method")?),
+            Long("scene") => {
+                let name: String = value(&mut parser, "--scene")?;
+                options.scene = match name.as_str() {
+                    "lab" => scenes()[0],
+                    "stiff-fabric" => scenes()[1],
+                    _ => return Err(format!("--scene is lab or stiff-fabric, got {name}").into()),
+                };
+            }
             Long("n") => {
                 options.n = value(&mut parser, "--n")?;
                 if !(2..=201).contains(&options.n) {
@@ -125,6 +163,8 @@ fn setup(
         Mesh3d(meshes.add(cloth_mesh(&model))),
         MeshMaterial3d(cloth_material),
         Cloth::new(model),
+        options.scene.params,
+        ClothScenes(scenes().to_vec()),
         Transform::default(),
         ClothResolution {
             n: options.n,
@@ -134,7 +174,10 @@ fn setup(
         // Clicks go through the cloth to the sphere behind it.
         Pickable::IGNORE,
     ));
-    options.method.insert(&mut cloth);
+    options
+        .method
+        .unwrap_or(options.scene.method)
+        .insert(&mut cloth);
     commands.spawn((
         Mesh3d(meshes.add(Sphere::new(1.0).mesh().ico(5)?)),
         MeshMaterial3d(materials.add(StandardMaterial {

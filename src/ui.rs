@@ -64,6 +64,25 @@ pub struct ClothResolution {
     pub build: fn(u32) -> Result<ClothModel, ClothBuildError>,
 }
 
+/// Named settings of one cloth that the panel offers as buttons: each sets
+/// the cloth's parameters and method at once (the lab's faithful scene and
+/// its stiff fabric, say).
+#[derive(Component, Clone, Debug, Default)]
+pub struct ClothScenes(pub Vec<ClothScene>);
+
+/// One of [`ClothScenes`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClothScene {
+    /// The button's text.
+    pub label: &'static str,
+    /// What the button says it does (shown on hover).
+    pub about: &'static str,
+    /// The cloth's parameters in this scene.
+    pub params: ClothParams,
+    /// Its method.
+    pub method: AnyMethod,
+}
+
 /// Panel state: the selected cloth and its step-time history.
 #[derive(Resource, Debug, Default)]
 pub struct Inspector {
@@ -166,6 +185,7 @@ type ClothItem = (
     Option<&'static Mesh3d>,
     Option<&'static GlobalTransform>,
     Option<&'static ClothDefaults>,
+    Option<&'static ClothScenes>,
 );
 
 #[allow(clippy::too_many_arguments)]
@@ -212,7 +232,7 @@ fn inspector_panel(
                             .on_hover_text("every cloth back at rest (r)")
                             .clicked()
                         {
-                            for (_, mut cloth, _, mut stats, _, _, transform, _) in &mut cloths {
+                            for (_, mut cloth, _, mut stats, _, _, transform, _, _) in &mut cloths {
                                 reset_cloth(&mut cloth, &mut stats, transform);
                             }
                         }
@@ -230,6 +250,7 @@ fn inspector_panel(
                                 _,
                                 transform,
                                 defaults,
+                                _,
                             ) in &mut cloths
                             {
                                 reset_cloth(&mut cloth, &mut stats, transform);
@@ -283,11 +304,23 @@ fn inspector_panel(
                         mesh,
                         _,
                         defaults,
+                        scenes,
                     )) = cloths.get_mut(selected)
                     else {
                         return;
                     };
                     ui.separator();
+                    if let Some(scenes) = scenes {
+                        ui.horizontal_wrapped(|ui| {
+                            ui.label("scene:");
+                            for scene in &scenes.0 {
+                                if ui.button(scene.label).on_hover_text(scene.about).clicked() {
+                                    *params = scene.params;
+                                    scene.method.insert(&mut commands.entity(entity));
+                                }
+                            }
+                        });
+                    }
                     let current = method_of.get(entity).ok().and_then(AnyMethod::from_item);
                     method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();

@@ -25,7 +25,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
-use bevy_cloth::collision::PenaltySphere;
+use bevy_cloth::collision::{Capsule, PenaltySphere, Shape, project_shapes};
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::exact::ExactSolver;
@@ -33,7 +33,9 @@ use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
 use bevy_cloth::solver::linear::SpringJacobian;
-use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, SpringStiffness, StepParams, energy, max_stretch};
+use bevy_cloth::solver::{
+    CONVERGENCE_TOLERANCE, SpringStiffness, StepInput, StepParams, energy, max_stretch,
+};
 
 /// Something that happens to the scene at the start of a step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,6 +69,10 @@ pub struct Scenario {
     pub params: StepParams,
     /// Penalty spheres acting on it.
     pub spheres: Vec<PenaltySphere>,
+    /// Solids the cloth is projected out of after every step (as the
+    /// plugin's colliders are), and which the `stiff` method projects
+    /// inside its substeps too.
+    pub contacts: Vec<Shape>,
     /// Steps to run.
     pub steps: usize,
     /// Events, in any order.
@@ -98,10 +104,26 @@ impl Scenario {
                 ..StepParams::LAB
             },
             spheres: Vec::new(),
+            contacts: Vec::new(),
             steps: ((1.0 / dt).ceil() as usize).clamp(1, 300),
             events: Vec::new(),
             bounds: GuardBounds::default(),
         }
+    }
+
+    /// The lab's cloth falling onto the lab's sphere (radius 2.7 at
+    /// (0, −4, 4), projection, frictionless: the headless example's
+    /// `--sphere`) and resting there, for `seconds` of simulated time.
+    pub fn on_sphere(k: f32, dt: f64, seconds: f64) -> Self {
+        let mut s = Self::grid(21, k, dt).named(format!("on the sphere k={k:e} dt={dt}"));
+        s.contacts.push(Shape::Capsule(Capsule {
+            a: Vec3A::new(0.0, -4.0, 4.0),
+            b: Vec3A::new(0.0, -4.0, 4.0),
+            radius: 2.7,
+            friction: 0.0,
+        }));
+        s.steps = (seconds / dt).round().max(1.0) as usize;
+        s
     }
 
     /// This scenario under another name.
@@ -329,8 +351,19 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
                 &mut state,
                 &mut backup,
                 params,
-                |s, p| method.step(model, s, p, &spheres, &mut ws),
+                |s, p| {
+                    let input = StepInput {
+                        model,
+                        params: p,
+                        spheres: &spheres,
+                        contacts: &scenario.contacts,
+                    };
+                    method.step_with(input, s, &mut ws)
+                },
             );
+            if r.is_ok() && !scenario.contacts.is_empty() {
+                project_shapes(model, &mut state, &scenario.contacts, 0.0, params.dt as f32);
+            }
             match r {
                 Ok(done) => {
                     if let Some(e) = done.report.relative_error {

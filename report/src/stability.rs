@@ -38,6 +38,13 @@ pub struct StabilityConfig {
     pub large: Option<usize>,
     /// Step counts over which the explicit limit is measured.
     pub limit_steps: Vec<usize>,
+    /// Stiffnesses of the sphere sweep (the cloth falling onto the lab's
+    /// sphere and resting there).
+    pub sphere_stiffnesses: Vec<f32>,
+    /// Time steps of the sphere sweep.
+    pub sphere_time_steps: Vec<f64>,
+    /// Simulated seconds of each sphere run.
+    pub sphere_seconds: f64,
     /// Show progress.
     pub progress: bool,
 }
@@ -54,6 +61,9 @@ impl StabilityConfig {
             resolutions: vec![11, 21, 51, 101],
             large: Some(301),
             limit_steps: vec![300, 1000, 3000],
+            sphere_stiffnesses: vec![1e4, 1e6, 1e8],
+            sphere_time_steps: vec![1.0 / 60.0, 0.0333],
+            sphere_seconds: 10.0,
             progress: true,
         }
     }
@@ -67,6 +77,9 @@ impl StabilityConfig {
             resolutions: vec![6],
             large: None,
             limit_steps: vec![50],
+            sphere_stiffnesses: vec![1e6],
+            sphere_time_steps: vec![0.1],
+            sphere_seconds: 1.0,
             progress: false,
         }
     }
@@ -204,6 +217,56 @@ fn convergence_section(
     }
 }
 
+/// The sphere section: every method on the cloth that falls onto the lab's
+/// sphere and rests there, per cell its verdict, its share of steps
+/// flagged as not converged and its max stretch.
+fn sphere_section(
+    md: &mut String,
+    labels: &[String],
+    seconds: f64,
+    cells: &[(f32, f64, usize, Vec<Outcome>)],
+) {
+    writeln!(
+        md,
+        "## Onto the sphere, and resting there ({seconds} s)\n\nThe lab cloth falls onto the \
+         lab's sphere (radius 2.7 at (0, −4, 4), projected after every step as the plugin \
+         does, frictionless; `stiff` also projects it inside every substep) and comes to rest \
+         draped on it: {seconds} s of simulated time, judged at the end as above (against the \
+         exact method with the same projection at the same step; `stiff` against the physical \
+         reference). Per cell: the verdict, the share of steps the plugin flags as not \
+         converged (methods with a convergence measure) and the max stretch at the end.\n"
+    )
+    .ok();
+    write!(md, "| method |").ok();
+    for (k, dt, _, _) in cells {
+        write!(md, " k = {k:e}, dt = {} |", step_label(*dt)).ok();
+    }
+    writeln!(md, "\n|---|{}", "---|".repeat(cells.len())).ok();
+    for (m, label) in labels.iter().enumerate() {
+        write!(md, "| {label} |").ok();
+        for (_, _, steps, outcomes) in cells {
+            let o = &outcomes[m];
+            let flagged = if o.run.max_relative_error.is_some() {
+                format!(
+                    "; ⚑ {:.0} %",
+                    100.0 * o.run.unconverged_steps as f64 / (*steps).max(1) as f64
+                )
+            } else {
+                String::new()
+            };
+            write!(
+                md,
+                " {}{flagged}; str {:.3} |",
+                verdict_text(o),
+                o.max_stretch
+            )
+            .ok();
+        }
+        writeln!(md).ok();
+    }
+    writeln!(md).ok();
+}
+
 /// A time step as the map prints it: `1/60` for a game's 60 Hz, else the
 /// number.
 fn step_label(dt: f64) -> String {
@@ -266,6 +329,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     let methods = map_methods();
     let labels: Vec<String> = methods.iter().map(crate::variant).collect();
     let total = config.stiffnesses.len() * config.time_steps.len()
+        + config.sphere_stiffnesses.len() * config.sphere_time_steps.len()
         + config.resolutions.len()
         + config.large.map_or(0, |n| Scenario::extreme_cases(n).len());
     let bar = if config.progress {
@@ -309,6 +373,18 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
 
     convergence_section(&mut md, &labels, config, &grid);
     physical_section(&mut md, &labels, config, &grid);
+
+    // 1b. Onto the sphere, and resting there.
+    let mut cells = Vec::new();
+    for &k in &config.sphere_stiffnesses {
+        for &dt in &config.sphere_time_steps {
+            bar.set_message(format!("sphere k={k:e} dt={dt}"));
+            let scenario = Scenario::on_sphere(k, dt, config.sphere_seconds);
+            cells.push((k, dt, scenario.steps, sweep(&scenario, &methods)));
+            bar.inc(1);
+        }
+    }
+    sphere_section(&mut md, &labels, config.sphere_seconds, &cells);
 
     // 2. Resolution, iterative methods and Newton on a budget, lab k and dt,
     // mass 1 per vertex.
