@@ -88,6 +88,7 @@ fn five_steps(
             ..StepParams::LAB
         },
         spheres,
+        contacts: Vec::new(),
         steps: 5,
         events: Vec::new(),
         bounds,
