@@ -368,7 +368,14 @@ fn run(o: &Options) -> Result<(), String> {
         }
         std::fs::write(path, csv).map_err(|e| format!("cannot write {path}: {e}"))?;
     }
-    Ok(())
+    // A run whose cloth stopped is a failed run: say why, exit non-zero.
+    if !finite {
+        return Err("the cloth's positions are not finite".into());
+    }
+    match &stats.status {
+        ClothStatus::Running => Ok(()),
+        status => Err(format!("the cloth did not finish running: {status:?}")),
+    }
 }
 
 fn main() -> ExitCode {

@@ -91,6 +91,8 @@ pub struct Inspector {
     /// Recent step times of the selected cloth, in microseconds.
     pub history: VecDeque<f32>,
     last_step: u64,
+    /// The fixed time step when the panel first ran, for "Reset all".
+    initial_step: Option<std::time::Duration>,
 }
 
 const HISTORY: usize = 240;
@@ -203,6 +205,7 @@ fn inspector_panel(
     mut commands: Commands,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
+    let initial_step = *inspector.initial_step.get_or_insert(fixed.timestep());
     egui::Window::new("bevy_cloth")
         .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
         .default_width(300.0)
@@ -238,9 +241,12 @@ fn inspector_panel(
                         }
                         if ui
                             .button("Reset all")
-                            .on_hover_text("and the parameters and methods the scene started with")
+                            .on_hover_text(
+                                "and the parameters, methods and time step the scene started with",
+                            )
                             .clicked()
                         {
+                            fixed.set_timestep(initial_step);
                             for (
                                 entity,
                                 mut cloth,
@@ -327,7 +333,8 @@ fn inspector_panel(
                     let defaults = defaults.map_or_else(ClothParams::default, |d| d.params);
                     // PBD restores rest lengths: it has no stiffness to tune.
                     let stiffness = !matches!(current, Some(AnyMethod::Pbd(_)));
-                    params_ui(ui, &mut params, &defaults, stiffness);
+                    let kinds = cloth.model().topology().spring_counts();
+                    params_ui(ui, &mut params, &defaults, stiffness, kinds);
                     if let Some(mut resolution) = resolution {
                         let mut n = resolution.n;
                         let (lo, hi) = resolution.range;
@@ -400,15 +407,9 @@ fn method_ui(
     if chosen != name
         && let Some(preset) = PRESETS.iter().find(|p| Some(p.name()) == chosen)
     {
-        // Between settings of one method type (Jacobi and Chebyshev), keep
-        // the iteration count.
-        let method = match (current.and_then(|c| c.iterations()), current) {
-            (Some(k), Some(c)) if c.type_id() == preset.method.type_id() => {
-                preset.method.with_iterations(k)
-            }
-            _ => preset.method,
-        };
-        method.insert(&mut commands.entity(entity));
+        // A preset is a whole setting: its iterations, tolerance and
+        // acceleration, whatever the previous method's were.
+        preset.method.insert(&mut commands.entity(entity));
         return;
     }
     let Some(mut method) = current else {
@@ -587,25 +588,31 @@ fn iterations_ui(ui: &mut egui::Ui, iterations: &mut u32, text: &str) {
     );
 }
 
-/// The cloth's parameters; the stiffness only if the method reads it.
+/// The cloth's parameters; the stiffness only if the method reads it, and
+/// of each spring kind only if the cloth has springs of that kind
+/// (`kinds`: stretch, shear, bend counts).
 fn params_ui(
     ui: &mut egui::Ui,
     params: &mut Mut<ClothParams>,
     defaults: &ClothParams,
     stiffness: bool,
+    kinds: [usize; 3],
 ) {
     let p = params.bypass_change_detection();
     let before = *p;
     let d = defaults;
     if stiffness {
-        log_value(
-            ui,
-            &mut p.stiffness.stretch,
-            d.stiffness.stretch,
-            "stretch k",
-        );
-        log_value(ui, &mut p.stiffness.shear, d.stiffness.shear, "shear k");
-        log_value(ui, &mut p.stiffness.bend, d.stiffness.bend, "bend k");
+        let k = &mut p.stiffness;
+        let values = [
+            (&mut k.stretch, d.stiffness.stretch, "stretch k (N/m)"),
+            (&mut k.shear, d.stiffness.shear, "shear k (N/m)"),
+            (&mut k.bend, d.stiffness.bend, "bend k (N/m)"),
+        ];
+        for ((value, default, text), count) in values.into_iter().zip(kinds) {
+            if count > 0 {
+                log_value(ui, value, default, text);
+            }
+        }
     }
     linear_value(ui, &mut p.damping, d.damping, 0.0..=1.0, 0.001, "damping");
     linear_value(
