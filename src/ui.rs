@@ -456,7 +456,14 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}
-        AnyMethod::Xpbd(x) => iterations_ui(ui, &mut x.substeps, "substeps (one sweep each)"),
+        AnyMethod::Xpbd(x) => {
+            ui.add(
+                egui::Slider::new(&mut x.substep_rate, 30..=15360)
+                    .text("substeps per second")
+                    .logarithmic(true),
+            )
+            .on_hover_text("each substep is one sweep over the springs; 960: 32 per 30 Hz step");
+        }
         AnyMethod::Exact(x) => {
             let mut exponent = x.tolerance.log10();
             if ui

@@ -234,7 +234,8 @@ fn sphere_section(
          draped on it: {seconds} s of simulated time, judged at the end as above (against the \
          exact method with the same projection at the same step; `stiff` against the physical \
          reference). Per cell: the verdict, the share of steps the plugin flags as not \
-         converged (methods with a convergence measure) and the max stretch at the end.\n"
+         converged (methods with a convergence measure), the max stretch at the end, and for \
+         `stiff` its reference's floor.\n"
     )
     .ok();
     write!(md, "| method |").ok();
@@ -254,9 +255,12 @@ fn sphere_section(
             } else {
                 String::new()
             };
+            let floor = o.floor.map_or_else(String::new, |f| {
+                format!("; floor low {:.2}, str {:.3}", f.lowest, f.stretch)
+            });
             write!(
                 md,
-                " {}{flagged}; str {:.3} |",
+                " {}{flagged}; str {:.3}{floor} |",
                 verdict_text(o),
                 o.max_stretch
             )

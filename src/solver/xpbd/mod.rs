@@ -1,7 +1,9 @@
 //! Extended position-based dynamics with small steps — the `stiff` method
 //! (Macklin, Müller, Chentanez 2016; Macklin, Storey, Lu et al. 2019).
 //!
-//! One step of length `dt` is `n` substeps of length `h = dt/n`. Each
+//! One step of length `dt` is `n = ⌈dt·r⌉` substeps of length `h = dt/n`,
+//! `r` the substep rate ([`XpbdSolver::substep_rate`]: 960 per second, 32
+//! substeps of the lab's 30 Hz step, 16 of a game's 60 Hz one). Each
 //! substep, for every free vertex `i`:
 //!
 //! 1. `vᵢ ← d^{1/n} vᵢ + h (g + f_c/mᵢ)` (`d` the step's damping, so the
@@ -48,26 +50,58 @@ use crate::collision::Shape;
 use crate::model::ClothState;
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
-/// Steps a cloth by XPBD with small steps: `substeps` substeps of one
-/// Gauss–Seidel sweep each, contacts projected in every substep (see the
-/// module docs). Right for stiff cloth at a game's frame rate. As a
-/// component on a cloth entity it selects this method
+/// Steps a cloth by XPBD with small steps: substeps of one Gauss–Seidel
+/// sweep each at a rate per second, contacts projected in every substep
+/// (see the module docs). Right for stiff cloth at a game's frame rate. As
+/// a component on a cloth entity it selects this method
 /// ([`XpbdPlugin`](crate::XpbdPlugin)); its preset is `stiff`.
+///
+/// The substep is set by a rate, not a count per step, because what one
+/// sweep leaves undone depends on the substep's length: at a fixed count a
+/// long step (0.1 s) took substeps too long for stiff springs (its stretch
+/// 0.04–0.05 above the reference from k = 1e5) and a short one (1 ms)
+/// substeps so short that `f32` positions lost their motion to rounding
+/// (the stability map, `docs/measurements.md`).
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Default, Debug, PartialEq)]
 pub struct XpbdSolver {
-    /// Substeps per step, one sweep over the springs each.
-    pub substeps: u32,
+    /// Substeps per second: a step of `dt` takes `⌈dt·rate⌉` substeps (at
+    /// least one), each one sweep over the springs.
+    pub substep_rate: u32,
 }
 
 impl XpbdSolver {
-    /// The `stiff` preset: 32 substeps (as many spring passes as the lab's
-    /// 32 Chebyshev iterations).
-    pub const STIFF: Self = Self::new(32);
+    /// The `stiff` preset: 960 substeps per second (32 per step of the
+    /// lab's 30 Hz, as many spring passes as its 32 Chebyshev iterations;
+    /// 16 per step at 60 Hz).
+    pub const STIFF: Self = Self::new(960);
 
-    /// With `substeps` substeps per step.
-    pub const fn new(substeps: u32) -> Self {
-        Self { substeps }
+    /// With `substep_rate` substeps per second.
+    pub const fn new(substep_rate: u32) -> Self {
+        Self { substep_rate }
+    }
+
+    /// The same method with `substeps` substeps per step of `dt` seconds
+    /// (the rate rounded up so that a step takes exactly that many).
+    #[must_use]
+    pub fn with_substeps(self, substeps: u32, dt: f64) -> Self {
+        let rate = (f64::from(substeps) / dt).ceil().min(f64::from(u32::MAX)) as u32;
+        let mut method = Self::new(rate.max(1));
+        // ⌈dt·rate⌉ can exceed the count by rounding: step the rate down.
+        while method.substeps(dt) > substeps && method.substep_rate > 1 {
+            method.substep_rate -= 1;
+        }
+        method
+    }
+
+    /// The substeps of a step of `dt` seconds: `⌈dt·rate⌉`, at least one
+    /// (a rate within a millionth of a whole count per step takes that
+    /// count, so 960 per second is 32 at the lab's `dt = 0.0333`).
+    pub fn substeps(&self, dt: f64) -> u32 {
+        let exact = dt * f64::from(self.substep_rate);
+        (exact * (1.0 - 1e-6))
+            .ceil()
+            .clamp(1.0, f64::from(u32::MAX)) as u32
     }
 }
 
@@ -85,18 +119,15 @@ impl Method for XpbdSolver {
         "stiff"
     }
 
-    fn iterations_mut(&mut self) -> Option<&mut u32> {
-        Some(&mut self.substeps)
-    }
-
     fn validate(&self) -> Result<(), ParamError> {
-        if self.substeps == 0 {
+        if self.substep_rate == 0 {
             return Err(ParamError::Iterations);
         }
         Ok(())
     }
 
-    /// Advances `state` by `substeps` XPBD substeps (see the module docs).
+    /// Advances `state` by XPBD substeps at the substep rate (see the
+    /// module docs).
     fn advance(
         &self,
         input: StepInput<'_>,
@@ -110,7 +141,7 @@ impl Method for XpbdSolver {
             contacts,
         } = input;
         let n = model.vertex_count();
-        let substeps = self.substeps;
+        let substeps = self.substeps(params.dt);
         let h = (params.dt / f64::from(substeps)) as f32;
         let inv_h = 1.0 / h;
         let damping = params.damping.powf(1.0 / substeps as f32);
@@ -158,17 +189,28 @@ impl Method for XpbdSolver {
         let solids = (contacts, &ws.bounds[..]);
         // Each pass over the vertices ends one substep (contacts, velocity)
         // and begins the next (prediction), so each substep reads them once.
+        // Without penalty spheres or solids it is a plain loop (the general
+        // one kept its constants on the stack: a third of the lab step).
+        let plain = spheres.is_empty() && contacts.is_empty();
+        let fall = h * gravity;
         let pass =
             |x: &mut [Vec3A], v: &mut [Vec3A], prev: &mut [Vec3A], end: bool, begin: bool| {
                 let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
-                for (((x, v), p), (&pinned, &mass)) in vertices.zip(pinned.iter().zip(masses)) {
+                let vertices = vertices.zip(pinned.iter().zip(masses));
+                if plain {
+                    for (((x, v), p), (&pinned, _)) in vertices {
+                        if !pinned {
+                            plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
+                        }
+                    }
+                    return;
+                }
+                for (((x, v), p), (&pinned, &mass)) in vertices {
                     if pinned {
                         continue;
                     }
                     if end {
-                        if !contacts.is_empty() {
-                            project(x, *p, solids);
-                        }
+                        project(x, *p, solids);
                         *v = (*x - *p) * inv_h;
                     }
                     if begin {
@@ -185,13 +227,14 @@ impl Method for XpbdSolver {
                 }
             };
         pass(x, v, prev, false, true);
+        let springs = ColouredSprings::new(
+            &ws.links.ends,
+            &ws.links.rest,
+            &ws.links.shares,
+            &ws.colouring.colours,
+            n,
+        );
         for substep in 1..=substeps {
-            let springs = ColouredSprings {
-                ends: &ws.links.ends,
-                rest: &ws.links.rest,
-                shares: &ws.links.shares,
-                colours: &ws.colouring.colours,
-            };
             sweep(params.simd, springs, x);
             pass(x, v, prev, true, substep < substeps);
         }
@@ -200,6 +243,27 @@ impl Method for XpbdSolver {
             residual: None,
             relative_error: None,
         })
+    }
+}
+
+/// One free vertex's pass without forces but gravity (`fall = h·g`): ends
+/// the substep (`v ← (x − p)/h`) and begins the next, as the general pass.
+#[inline(always)]
+fn plain_pass(
+    x: &mut Vec3A,
+    v: &mut Vec3A,
+    p: &mut Vec3A,
+    [end, begin]: [bool; 2],
+    [inv_h, damping, h]: [f32; 3],
+    fall: Vec3A,
+) {
+    if end {
+        *v = (*x - *p) * inv_h;
+    }
+    if begin {
+        *v = *v * damping + fall;
+        *p = *x;
+        *x += h * *v;
     }
 }
 

@@ -45,6 +45,19 @@ fn run_with_contacts(
 }
 
 #[test]
+fn the_substep_rate_gives_whole_counts_per_step() {
+    let stiff = XpbdSolver::STIFF;
+    assert_eq!(stiff.substeps(0.0333), 32);
+    assert_eq!(stiff.substeps(1.0 / 30.0), 32);
+    assert_eq!(stiff.substeps(1.0 / 60.0), 16);
+    assert_eq!(stiff.substeps(0.1), 96);
+    assert_eq!(stiff.substeps(1e-4), 1);
+    for (n, dt) in [(1, 0.1), (7, 0.0333), (32, 1.0 / 60.0), (100, 1e-3)] {
+        assert_eq!(stiff.with_substeps(n, dt).substeps(dt), n, "{n} at {dt}");
+    }
+}
+
+#[test]
 fn colours_share_no_vertex_and_hold_every_spring_once() {
     let model = ClothBuilder::lab_grid(9)
         .with_shear_springs()
@@ -86,7 +99,9 @@ fn a_cloth_at_rest_falls_as_symplectic_euler_at_the_substep() {
         ..stiff(1e6, 0.02)
     };
     let n = 8;
-    let state = run_from_rest(&XpbdSolver::new(n), &model, &params, &[], 1);
+    let method = XpbdSolver::STIFF.with_substeps(n, 0.02);
+    assert_eq!(method.substeps(0.02), n);
+    let state = run_from_rest(&method, &model, &params, &[], 1);
     let h = 0.02 / f64::from(n);
     let g = 9.8;
     let drop = g * h * h * f64::from(n * (n + 1)) / 2.0;
