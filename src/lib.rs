@@ -113,6 +113,12 @@
 //!   with Coulomb friction ([`collision::project_shapes`]), or, with
 //!   [`ContactResponse::Penalty`], a penalty force inside the step like the
 //!   assignment's sphere ([`collision::PenaltySurface::Shape`]); every method.
+//! - The projected solids also reach the method inside its step
+//!   ([`solver::StepInput::contacts`]): `stiff` ([`XpbdSolver`]) projects
+//!   them in every substep, `newton` and `exact` ([`ExactSolver::contacts`])
+//!   add them to their objective as penalties, so stiff cloth in contact is
+//!   not strained by the projection after the step; the other methods leave
+//!   them to that projection.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)

@@ -306,6 +306,7 @@ fn step_cloths<M: ClothMethod>(
                             .count() as u32
                     })
                     .sum::<u32>();
+                stats.contacts += done.report.contacts;
                 stats.steps += 1;
                 stats.step_time = elapsed;
                 stats.iterations = done.report.iterations;

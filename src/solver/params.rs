@@ -177,6 +177,11 @@ pub struct StepReport {
     /// implicit-Euler objective (PBD, symplectic Euler) or take one linear
     /// solve for it (linearly implicit Euler).
     pub relative_error: Option<f32>,
+    /// Vertices the method itself held on a collider at the end of its step
+    /// (`stiff`, which projects the colliders inside its substeps); 0 for
+    /// the methods that leave the projection to after the step, where it is
+    /// counted. Added to [`ClothStats::contacts`](crate::ClothStats::contacts).
+    pub contacts: u32,
 }
 
 /// The relative error above which a step counts as not converged

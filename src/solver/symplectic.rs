@@ -103,6 +103,7 @@ impl Method for SymplecticSolver {
             iterations: 0,
             residual: None,
             relative_error: None,
+            contacts: 0,
         })
     }
 }

@@ -300,6 +300,7 @@ impl Method for ImplicitSolver {
             iterations: config.iterations,
             residual: Some(residual),
             relative_error: Some(convergence.relative_error(model, params.dt)),
+            contacts: 0,
         })
     }
 }

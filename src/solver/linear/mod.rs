@@ -285,6 +285,7 @@ impl Method for LinearImplicitSolver {
             iterations,
             residual: Some(residual as f32),
             relative_error: None,
+            contacts: 0,
         })
     }
 }

@@ -99,6 +99,7 @@ impl Method for PbdSolver {
             iterations: config.iterations,
             residual: None,
             relative_error: None,
+            contacts: 0,
         };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();

@@ -600,6 +600,7 @@ impl Method for ProjectiveSolver {
             iterations,
             residual: Some(residual.sqrt() as f32),
             relative_error: Some(convergence.relative_error(model, params.dt)),
+            contacts: 0,
         })
     }
 }

@@ -6,9 +6,8 @@
 //! substeps of the lab's 30 Hz step, 16 of a game's 60 Hz one). Each
 //! substep, for every free vertex `i`:
 //!
-//! 1. `vᵢ ← d^{1/n} vᵢ + h (g + f_c/mᵢ)` (`d` the step's damping, so the
-//!    step damps as the other methods do; `f_c` a penalty sphere's force),
-//!    `pᵢ ← xᵢ`, `xᵢ ← xᵢ + h vᵢ`;
+//! 1. `vᵢ ← d^{1/n} vᵢ + h g` (`d` the step's damping, so the step damps
+//!    as the other methods do), `pᵢ ← xᵢ`, `xᵢ ← xᵢ + h vᵢ`;
 //! 2. one Gauss–Seidel sweep over the springs, colour by colour (a greedy
 //!    edge colouring: springs of one colour share no vertex): a spring
 //!    `(a, b)` of rest length `L`, stiffness `k`, violation `C = l − L`
@@ -17,10 +16,12 @@
 //!    `w = 1/m` (0 at a pin) and the compliance `α̃ = 1/(k h²)`: XPBD's
 //!    update with its multiplier starting at zero each substep (one
 //!    iteration per substep, as Macklin et al. 2019 recommend);
-//! 3. every vertex inside a solid of [`StepInput::contacts`] is moved to its
-//!    surface, with position-based Coulomb friction: of its tangential motion
-//!    over the substep, up to `μ` times the depth is taken back (all of it:
-//!    static friction);
+//! 3. every vertex inside a solid of [`StepInput::contacts`] or a penalty
+//!    collider ([`StepInput::spheres`], whose stiffness it does not use: an
+//!    explicit penalty force at the substep bounces the cloth off
+//!    elastically) is moved to its surface, with position-based Coulomb
+//!    friction: of its tangential motion over the substep, up to `μ` times
+//!    the depth is taken back (all of it: static friction);
 //! 4. `vᵢ ← (xᵢ − pᵢ)/h`.
 //!
 //! Soft springs (`α̃ ≫ w`) move by about `h² k C/m`, an explicit spring
@@ -46,7 +47,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use self::colouring::{Colouring, Links};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
-use crate::collision::Shape;
+use crate::collision::{Capsule, PenaltySurface, Shape};
 use crate::model::ClothState;
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
@@ -184,6 +185,22 @@ impl Method for XpbdSolver {
         ws.previous.extend_from_slice(x);
         let prev = &mut ws.previous[..n];
 
+        // Every collider is projected in the substeps, penalty ones too:
+        // their force, explicit at the substep, bounced the cloth off
+        // elastically (a cloth dropped on a penalty box at c = 800 jumped
+        // back up 1.5 m), where a projection stops it.
+        ws.solids.clear();
+        ws.solids.extend_from_slice(contacts);
+        ws.solids.extend(spheres.iter().map(|s| match s.surface {
+            PenaltySurface::Sphere => Shape::Capsule(Capsule {
+                a: s.center,
+                b: s.center,
+                radius: s.radius,
+                friction: 0.0,
+            }),
+            PenaltySurface::Shape(shape) => shape,
+        }));
+        let contacts = &ws.solids[..];
         ws.bounds.clear();
         ws.bounds.extend(contacts.iter().map(bound));
         let solids = (contacts, &ws.bounds[..]);
@@ -191,7 +208,7 @@ impl Method for XpbdSolver {
         // and begins the next (prediction), so each substep reads them once.
         // Without penalty spheres or solids it is a plain loop (the general
         // one kept its constants on the stack: a third of the lab step).
-        let plain = spheres.is_empty() && contacts.is_empty();
+        let plain = contacts.is_empty();
         let fall = h * gravity;
         let pass =
             |x: &mut [Vec3A], v: &mut [Vec3A], prev: &mut [Vec3A], end: bool, begin: bool| {
@@ -203,28 +220,19 @@ impl Method for XpbdSolver {
                             plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
                         }
                     }
-                    return;
+                    return 0;
                 }
-                for (((x, v), p), (&pinned, &mass)) in vertices {
+                let mut touching = 0;
+                for (((x, v), p), (&pinned, _)) in vertices {
                     if pinned {
                         continue;
                     }
                     if end {
-                        project(x, *p, solids);
-                        *v = (*x - *p) * inv_h;
+                        touching += u32::from(project(x, *p, solids));
                     }
-                    if begin {
-                        let mut accel = gravity;
-                        for sphere in spheres {
-                            if let Some(contact) = sphere.contact(*x) {
-                                accel += contact.force / mass;
-                            }
-                        }
-                        *v = *v * damping + h * accel;
-                        *p = *x;
-                        *x += h * *v;
-                    }
+                    plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
                 }
+                touching
             };
         pass(x, v, prev, false, true);
         let springs = ColouredSprings::new(
@@ -234,14 +242,16 @@ impl Method for XpbdSolver {
             &ws.colouring.colours,
             n,
         );
+        let mut contacts_held = 0;
         for substep in 1..=substeps {
             sweep(params.simd, springs, x);
-            pass(x, v, prev, true, substep < substeps);
+            contacts_held = pass(x, v, prev, true, substep < substeps);
         }
         Ok(StepReport {
             iterations: substeps,
             residual: None,
             relative_error: None,
+            contacts: contacts_held,
         })
     }
 }
@@ -285,9 +295,11 @@ fn bound(shape: &Shape) -> Bound {
 }
 
 /// Moves `x` out of every solid it is inside, with position-based Coulomb
-/// friction on its motion since `prev` (the substep's start). `solids` are
-/// the shapes and their [`bound`]s.
-fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) {
+/// friction on its motion since `prev` (the substep's start), and says
+/// whether it was inside one. `solids` are the shapes and their
+/// [`bound`]s.
+fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) -> bool {
+    let mut touched = false;
     for (shape, bound) in shapes.iter().zip(bounds) {
         if bound.is_some_and(|(centre, r2)| x.distance_squared(centre) > r2) {
             continue;
@@ -295,6 +307,7 @@ fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) {
         let Some((normal, depth)) = shape.contact(*x, 0.0) else {
             continue;
         };
+        touched = true;
         *x += depth * normal;
         let mu = shape.friction();
         if mu > 0.0 {
@@ -306,6 +319,7 @@ fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) {
             }
         }
     }
+    touched
 }
 
 /// Scratch buffers of the XPBD solver, sized on first use.
@@ -317,7 +331,9 @@ pub struct XpbdWorkspace {
     links: Links,
     /// Per vertex, its position at the substep's start.
     previous: Vec<Vec3A>,
-    /// Per solid of the step's contacts, its quick test ([`bound`]).
+    /// The step's contacts and penalty colliders, projected alike.
+    solids: Vec<Shape>,
+    /// Per solid, its quick test ([`bound`]).
     bounds: Vec<Bound>,
 }
 
