@@ -12,7 +12,7 @@
 //! Methods: the preset names of `bevy_cloth::methods::PRESETS` (`jacobi`,
 //! also `implicit`, `chebyshev`, `chebyshev-auto`, `pbd`, `symplectic`,
 //! `linear-cg`, `linear-direct`, `pd`, `pd-anderson`, `newton`, `exact`, `stiff`), at
-//! their interactive settings;
+//! their interactive settings (default `chebyshev`, as the lab);
 //! `--iterations` and `--rho` change them. Every method runs on every scene.
 //!
 //! - `lab` (default): the Unity lab's `n×n` cloth (10×10 units, total mass
@@ -54,11 +54,32 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_cloth::prelude::*;
 use cli::{CliError, Long, Parser, Short, value};
 
-const USAGE: &str = "usage: headless [--scene lab|assignment] \
-[--method jacobi|chebyshev|chebyshev-auto|pbd|symplectic|linear-cg|linear-direct|pd|pd-anderson|newton|exact|stiff] [--n N] [--rows R] \
-[--cols C] [--cloths N] [--steps S] [--iterations K] [--k STIFFNESS] [--dt SECONDS] [--damping D] \
-[--mass TOTAL] [--rho RHO] [--sphere] [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] \
-[--dump FILE.csv] [--compute-threads N]";
+const USAGE: &str = "usage: headless [OPTIONS]
+
+  --scene lab|assignment   the scene (default lab)
+  --method NAME            a preset (default chebyshev, the lab's): jacobi, chebyshev,
+                           chebyshev-auto, pbd, symplectic, linear-cg, linear-direct, pd,
+                           pd-anderson, newton, exact, stiff
+  --n N                    the lab cloth's side in vertices (default 21)
+  --rows R --cols C        the assignment's grid (default 30 x 30)
+  --cloths N               copies side by side (default 1)
+  --steps S                fixed steps to run (default 300)
+  --iterations K           the method's iterations per step (default: the preset's)
+  --k STIFFNESS            spring stiffness (default: the scene's, 8000 or E = 10)
+  --dt SECONDS             time step (default: the scene's, 0.0333 or 0.005)
+  --damping D              velocity multiplier per step (default: 0.99 or 1)
+  --mass TOTAL             the cloth's total mass (default: 441 or 0.1)
+  --rho RHO                Chebyshev's fixed spectral radius (default: the preset's)
+  --sphere                 add the scene's sphere (default: none)
+  --penalty C              the assignment sphere's penalty stiffness (default 10)
+  --exact-k                the linearly implicit methods' exact spring blocks
+  --global auto|direct|mg|mgN   projective dynamics' global solve (default auto)
+  --dump FILE.csv          write the final positions
+  --compute-threads N      the compute pool's threads (default: Bevy's)
+  --help                   this text
+
+Exits 0 when the cloth ran to the end, 1 when it diverged, was refused or
+is not finite (and says why), 2 on a bad argument.";
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scene {
@@ -93,11 +114,13 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             scene: Scene::Lab,
-            method: PRESETS[0].method,
+            method: bevy_cloth::methods::preset("chebyshev")
+                .expect("a preset")
+                .method,
             n: 21,
             cloths: 1,
-            rows: 2,
-            cols: 2,
+            rows: 30,
+            cols: 30,
             steps: 300,
             iterations: None,
             k: None,

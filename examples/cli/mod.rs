@@ -62,7 +62,10 @@ pub fn parse_from<T>(
     match parse(parser) {
         Ok(parsed) => Ok(parsed),
         Err(CliError::Help) => {
-            println!("{usage}");
+            // Not `println!`, which panics when the reader has gone
+            // (`--help | head`).
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stdout(), "{usage}");
             Err(ExitCode::SUCCESS)
         }
         Err(CliError::Bad(e)) => {
