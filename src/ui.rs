@@ -710,23 +710,37 @@ fn stats_ui(
         ));
     }
     ui.label(format!("method: {}   steps: {}", stats.method, stats.steps));
+    let iterations = if stats.method == "stiff" {
+        "substeps"
+    } else {
+        "iterations"
+    };
     ui.label(format!(
-        "step: {:.1} µs   iterations: {}",
+        "step: {:.1} µs   {iterations}: {}",
         stats.step_time.as_secs_f64() * 1e6,
         stats.iterations
-    ));
+    ))
+    .on_hover_text("the last step's wall time, and its iterations (substeps for stiff)");
     ui.label(format!(
         "residual: {}",
         stats
             .residual
             .map_or("-".to_string(), |r| format!("{r:.3e}"))
-    ));
+    ))
+    .on_hover_text(match stats.method {
+        "newton" | "exact" => "the gradient's norm relative to the step's start (no unit)",
+        "linear-cg" => "CG's relative residual ‖b − Ax‖/‖b‖ (no unit)",
+        "stiff" | "pbd" | "symplectic" | "linear-direct" => "this method has no residual",
+        _ => "the implicit-Euler objective's gradient norm, in newtons",
+    });
     ui.label(format!(
         "max stretch: {:.2} %   contacts: {}",
         stats.max_stretch * 100.0,
         stats.contacts
-    ));
-    ui.label(format!("energy: {:.3e}", stats.energy));
+    ))
+    .on_hover_text("the longest spring over its rest length; vertices on a collider");
+    ui.label(format!("energy: {:.3e} J", stats.energy))
+        .on_hover_text("kinetic + spring + gravitational (zero height at y = 0)");
     if let Some(error) = stats.relative_error {
         let text = format!("step error: {:.1} % of its motion", 100.0 * error);
         if stats.converged {
