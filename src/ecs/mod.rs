@@ -133,8 +133,7 @@ impl std::fmt::Display for ClothNotConverged {
         write!(
             f,
             "cloth {} did not converge under '{}' with {} iterations at step {}: its estimated \
-             error is {:.0} % of its motion (tolerance {:.0} %), so it moves too little, as if \
-             locked; {}",
+             distance from implicit Euler's step is {:.0} % of its motion (tolerance {:.0} %); {}",
             self.entity,
             self.method,
             self.iterations,
