@@ -89,6 +89,21 @@ impl PenaltySphere {
         self
     }
 
+    /// The solid this penalty acts against, as a frictionless [`Shape`]
+    /// (a sphere as a capsule of zero length), for the position-based
+    /// methods, which project it instead of applying its force.
+    pub fn as_shape(&self) -> Shape {
+        match self.surface {
+            PenaltySurface::Sphere => Shape::Capsule(Capsule {
+                a: self.center,
+                b: self.center,
+                radius: self.radius,
+                friction: 0.0,
+            }),
+            PenaltySurface::Shape(shape) => shape,
+        }
+    }
+
     /// Whether the segment `a`–`b` (a vertex's motion over a step) comes
     /// within a quarter of the contact distance of the surface (a sphere),
     /// or touches the shape (any other): the vertices whose penalty may act

@@ -192,6 +192,43 @@ fn penalty_planes_and_boxes_hold_a_cloth_under_every_method() {
     assert_eq!(held, PRESETS.len() - 1);
 }
 
+#[test]
+fn pbd_and_stiff_rest_on_a_stiff_penalty_box_without_gaining_energy() {
+    // At c = 1e5, c·dt²/m ≈ 110: an explicit penalty force launched PBD's
+    // cloth to tens of metres. The position-based methods project penalty
+    // colliders instead: the cloth lands on the box top (y = −2), drapes
+    // and never gains energy (the stiff method's floppy cloth crumples a
+    // little on the top, up to y ≈ −1.8).
+    for method in ["pbd", "stiff"] {
+        let mut app = app();
+        app.world_mut().spawn((
+            CuboidCollider::new(Vec3::new(1.5, 0.5, 1.5)).with_penalty(1e5),
+            Transform::from_xyz(0.0, -2.5, 0.0),
+        ));
+        let cloth = Cloth::build(ClothBuilder::lab_grid(11)).unwrap();
+        let e = app.world_mut().spawn((cloth, Transform::default())).id();
+        let method: AnyMethod = method.parse().unwrap();
+        method.insert(&mut app.world_mut().commands().entity(e));
+        run_steps(&mut app, 60);
+        let landed = stats(&app, e).energy;
+        for _ in 0..8 {
+            run_steps(&mut app, 30);
+            let x = positions(&app, e);
+            let highest = x.iter().map(|v| v.y).fold(f32::MIN, f32::max);
+            let s = stats(&app, e);
+            assert!(highest < -1.5, "{} rose to {highest}", method.name());
+            assert!(
+                s.energy <= landed + 1e-2 * landed.abs(),
+                "{}: energy {} after landing at {landed}",
+                method.name(),
+                s.energy
+            );
+        }
+        let s = stats(&app, e);
+        assert!(s.is_running() && s.contacts > 0, "{}: {s:?}", method.name());
+    }
+}
+
 /// The lab cloth at `k = 1e7` with `method`, falling onto the lab's sphere
 /// for 3 s: its max stretch and how many vertices were inside the sphere
 /// after any fixed step (the plugin's projection runs after the step for

@@ -10,8 +10,9 @@
 //!    0.2-weighted average `x'ᵢ = (0.2 xᵢ + Σ proposals)/(0.2 + nᵢ)` of its
 //!    position and its `nᵢ` proposals, and `vᵢ ← vᵢ + (x'ᵢ − xᵢ)/dt`.
 //!
-//! A penalty sphere acts as an explicit force in the velocity prediction
-//! (`v ← v + dt·f_c/m`). The proposals are computed once per spring and
+//! A penalty collider is projected after the strain limiting, as the lab's
+//! sphere is after the step (its stiffness unused: an explicit penalty force
+//! in the prediction launched the cloth where `c·dt²/m ≫ 1`). The proposals are computed once per spring and
 //! gathered per vertex. A cloth whose springs form a stencil (every
 //! builder's grid) runs step 2 on structure-of-arrays kernels at the CPU's
 //! widest SIMD (`solver::engine::stencil::pbd`, crate-private), unless
@@ -25,6 +26,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepParams, StepReport};
+use crate::collision::{PenaltySphere, Shape, project_shapes};
 use crate::model::ClothState;
 use crate::solver::engine::kernels::{PaddedRows, Springs, spring_scales_ends};
 use crate::solver::engine::stencil::pbd::PbdStencilWorkspace;
@@ -95,7 +97,7 @@ impl Method for PbdSolver {
         } = input;
         let config = self;
         let n = model.vertex_count();
-        let report = StepReport {
+        let mut report = StepReport {
             iterations: config.iterations,
             residual: None,
             relative_error: None,
@@ -110,20 +112,21 @@ impl Method for PbdSolver {
         let ClothState {
             positions: x,
             velocities: v,
-        } = state;
+        } = &mut *state;
 
         for i in 0..n {
             if !pinned[i] {
-                let mut accel = gravity;
-                for sphere in spheres {
-                    if let Some(contact) = sphere.contact(x[i]) {
-                        accel += contact.force / model.masses()[i];
-                    }
-                }
-                v[i] = v[i] * params.damping + dt * accel;
+                v[i] = v[i] * params.damping + dt * gravity;
                 x[i] += dt * v[i];
             }
         }
+        // Penalty colliders are projected after the strain limiting (as the
+        // lab's sphere is after the step): their force, explicit in the
+        // prediction, launched a cloth resting on a box at c = 1e5 to tens
+        // of metres (`c·dt²/m` ≫ 1).
+        ws.solids.clear();
+        ws.solids
+            .extend(spheres.iter().map(PenaltySphere::as_shape));
 
         // The structure-of-arrays kernels where the springs form a stencil.
         if let Some(stencil) = model.topology().stencil().filter(|_| params.stencil) {
@@ -136,6 +139,7 @@ impl Method for PbdSolver {
                 x,
                 v,
             );
+            report.contacts = project_shapes(model, state, &ws.solids, 0.0, dt) as u32;
             return Ok(report);
         }
         ws.proposals.clear();
@@ -194,6 +198,7 @@ impl Method for PbdSolver {
                 }
             }
         }
+        report.contacts = project_shapes(model, state, &ws.solids, 0.0, dt) as u32;
         Ok(report)
     }
 }
@@ -214,4 +219,6 @@ pub struct PbdWorkspace {
     rows: PaddedRows,
     /// The structure-of-arrays state of the stencil kernels.
     stencil: PbdStencilWorkspace,
+    /// The step's penalty colliders as solids to project.
+    solids: Vec<Shape>,
 }

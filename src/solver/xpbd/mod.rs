@@ -47,7 +47,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use self::colouring::{Colouring, Links};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
-use crate::collision::{Capsule, PenaltySurface, Shape};
+use crate::collision::{PenaltySphere, Shape};
 use crate::model::ClothState;
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
@@ -191,15 +191,8 @@ impl Method for XpbdSolver {
         // back up 1.5 m), where a projection stops it.
         ws.solids.clear();
         ws.solids.extend_from_slice(contacts);
-        ws.solids.extend(spheres.iter().map(|s| match s.surface {
-            PenaltySurface::Sphere => Shape::Capsule(Capsule {
-                a: s.center,
-                b: s.center,
-                radius: s.radius,
-                friction: 0.0,
-            }),
-            PenaltySurface::Shape(shape) => shape,
-        }));
+        ws.solids
+            .extend(spheres.iter().map(PenaltySphere::as_shape));
         let contacts = &ws.solids[..];
         ws.bounds.clear();
         ws.bounds.extend(contacts.iter().map(bound));
