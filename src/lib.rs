@@ -95,11 +95,12 @@
 //!
 //! | You want | Preset |
 //! |---|---|
-//! | the lab's look, soft cloth (`k` up to ~1e4 at 30 Hz) | `chebyshev` |
-//! | stiffer cloth at interactive cost (`k` up to 1e6 at 30 Hz) | `pd` |
-//! | nearly inextensible cloth, small to mid-size | `pd-anderson` (37 of the map's 40 cells) |
-//! | any stiffness, small cloths (≤ ~51²) | `newton` (all 40 cells; its cost per step: `docs/perf.md`) |
-//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `pd` for stiffer cloth (its multigrid global solve) |
+//! | the lab's look, soft cloth (`k·dt²/m` up to ~10: `k` up to ~1e4 on the lab cloth at 30 Hz) | `chebyshev` |
+//! | stiff cloth, cloth of real mass, cloth in contact, at a game's frame rate | `stiff` (all 48 cells of the map against the physical reference; about 2× Chebyshev-32) |
+//! | stiffer cloth, implicit Euler at interactive cost (`k` up to 1e6 at 30 and 60 Hz) | `pd` |
+//! | nearly inextensible cloth, implicit Euler, small to mid-size | `pd-anderson` (44 of the map's 48 cells) |
+//! | the implicit-Euler answer at any stiffness, small cloths (≤ ~51²) | `newton` (all 48 cells and the sphere's; its cost per step: `docs/perf.md`) |
+//! | large cloths (≥ 101²) at a frame rate | `chebyshev` on 2 threads, or `stiff` / `pd` for stiffer cloth |
 //! | the reference | `exact` |
 //!
 //! ## Collision
