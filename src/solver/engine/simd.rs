@@ -217,7 +217,7 @@ pub(crate) fn spring_products(
 }
 
 #[cfg(target_arch = "x86_64")]
-mod x86 {
+pub(super) mod x86 {
     //! The wide kernels. Each loads the two ends of its springs' records
     //! into registers holding two (AVX2) or four (AVX-512) springs, one per
     //! 128-bit lane, so that what the baseline does on one spring's `Vec3A`
@@ -229,6 +229,45 @@ mod x86 {
     use bevy::math::Vec3A;
 
     use crate::model::Spring;
+
+    /// The squared lengths of eight springs held two to a register, spring
+    /// `i` in the low lane of `r[i]` and spring `i + 4` in its high lane
+    /// (`[d_i | d_{i+4}]`): transposed within the lanes into
+    /// `x = [x0 x1 x2 x3 | x4 x5 x6 x7]`, `y`, `z`, then `(x² + y²) + z²`,
+    /// the baseline's order without fused multiply–adds. Shared by the
+    /// spring pass and XPBD's sweep (`sweep.rs`).
+    #[target_feature(enable = "avx,avx2,fma")]
+    #[inline]
+    pub(in crate::solver::engine) fn lengths_squared(r: &[__m256; 4]) -> __m256 {
+        let t0 = _mm256_castps_pd(_mm256_unpacklo_ps(r[0], r[1]));
+        let t1 = _mm256_castps_pd(_mm256_unpacklo_ps(r[2], r[3]));
+        let t2 = _mm256_castps_pd(_mm256_unpackhi_ps(r[0], r[1]));
+        let t3 = _mm256_castps_pd(_mm256_unpackhi_ps(r[2], r[3]));
+        let lx = _mm256_castpd_ps(_mm256_unpacklo_pd(t0, t1));
+        let ly = _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t1));
+        let lz = _mm256_castpd_ps(_mm256_unpacklo_pd(t2, t3));
+        _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly)),
+            _mm256_mul_ps(lz, lz),
+        )
+    }
+
+    /// Eight springs' pairs `[first, second]` (the spring pass's `[α, β]`,
+    /// the sweep's shares) as two registers in the lanes' spring order of
+    /// [`lengths_squared`]: `[f0 f1 f2 f3 | f4 f5 f6 f7]` and the seconds.
+    #[target_feature(enable = "avx,avx2,fma")]
+    #[inline]
+    pub(in crate::solver::engine) fn split_pairs(pairs: &[[f32; 2]]) -> (__m256, __m256) {
+        let pairs: &[[f32; 2]; 8] = pairs[..8].try_into().expect("eight pairs");
+        // SAFETY: `pairs[i..i + 2]` is two `[f32; 2]`, 16 readable bytes.
+        let load = |i: usize| unsafe { _mm_loadu_ps(pairs[i..i + 2].as_ptr().cast::<f32>()) };
+        let c0 = _mm256_set_m128(load(4), load(0));
+        let c1 = _mm256_set_m128(load(6), load(2));
+        (
+            _mm256_shuffle_ps::<0b10_00_10_00>(c0, c1),
+            _mm256_shuffle_ps::<0b11_01_11_01>(c0, c1),
+        )
+    }
 
     /// The AVX2 pass over the first `springs.len() / 8 * 8` springs;
     /// returns how many it did.
@@ -257,28 +296,8 @@ mod x86 {
                 _mm256_sub_ps(a, b)
             };
             let r = [pair(0), pair(1), pair(2), pair(3)];
-            // In-lane transpose: lx = [x0 x1 x2 x3 | x4 x5 x6 x7], and so on.
-            let t0 = _mm256_castps_pd(_mm256_unpacklo_ps(r[0], r[1]));
-            let t1 = _mm256_castps_pd(_mm256_unpacklo_ps(r[2], r[3]));
-            let t2 = _mm256_castps_pd(_mm256_unpackhi_ps(r[0], r[1]));
-            let t3 = _mm256_castps_pd(_mm256_unpackhi_ps(r[2], r[3]));
-            let lx = _mm256_castpd_ps(_mm256_unpacklo_pd(t0, t1));
-            let ly = _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t1));
-            let lz = _mm256_castpd_ps(_mm256_unpacklo_pd(t2, t3));
-            // The baseline's order: (x² + y²) + z², no fused multiply–add.
-            let l2 = _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly)),
-                _mm256_mul_ps(lz, lz),
-            );
-            // Coefficient pairs: [α_i β_i α_{i+1} β_{i+1} | the same at i + 4].
-            let coeff = |i: usize| -> __m128 {
-                // SAFETY: `c[i..i + 2]` is two `[f32; 2]`, 16 readable bytes.
-                unsafe { _mm_loadu_ps(c[i..i + 2].as_ptr().cast::<f32>()) }
-            };
-            let c0 = _mm256_set_m128(coeff(4), coeff(0));
-            let c1 = _mm256_set_m128(coeff(6), coeff(2));
-            let alpha = _mm256_shuffle_ps::<0b10_00_10_00>(c0, c1);
-            let beta = _mm256_shuffle_ps::<0b11_01_11_01>(c0, c1);
+            let l2 = lengths_squared(&r);
+            let (alpha, beta) = split_pairs(c);
             let raw = _mm256_sub_ps(alpha, _mm256_div_ps(beta, _mm256_sqrt_ps(l2)));
             let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(l2, _mm256_setzero_ps());
             let scale = _mm256_and_ps(raw, positive);

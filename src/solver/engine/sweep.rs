@@ -73,12 +73,17 @@ pub(crate) fn sweep(level: Simd, springs: ColouredSprings<'_>, x: &mut [Vec3A]) 
     );
     #[cfg(target_arch = "x86_64")]
     if level.resolve() != Simd::Baseline {
-        // SAFETY: the CPU has AVX2 (`resolve` never names a level it
-        // lacks, and AVX-512 CPUs have AVX2), every end is an index of `x`
-        // (below `vertices`, checked when the springs were made, and
-        // `vertices ≤ x.len()`, asserted above), and the colours lie within
-        // the fields (checked when made).
-        unsafe { x86::sweep_avx2(springs, x) };
+        for colour in springs.colours.windows(2) {
+            // SAFETY: the CPU has AVX2 (`resolve` never names a level it
+            // lacks, and AVX-512 CPUs have AVX2), every end is an index of
+            // `x` (below `vertices`, checked when the springs were made,
+            // and `vertices ≤ x.len()`, asserted above), and the colours
+            // lie within the fields (checked when made).
+            let done = unsafe { x86::batches_avx2(springs, (colour[0], colour[1]), x) };
+            for e in done..colour[1] {
+                one_spring(&springs, e, x);
+            }
+        }
         return;
     }
     sweep_at(level, springs, x);
@@ -122,11 +127,7 @@ fn sweep_kernel(springs: ColouredSprings<'_>, x: &mut [Vec3A]) {
             at += BATCH;
         }
         for e in at..end {
-            let [a, b] = ends[e].map(|i| i as usize);
-            let d = x[a] - x[b];
-            let correction = d * factor((d.x * d.x + d.y * d.y) + d.z * d.z, rest[e]);
-            x[a] -= shares[e][0] * correction;
-            x[b] += shares[e][1] * correction;
+            one_spring(&springs, e, x);
         }
     }
 }
@@ -145,108 +146,92 @@ mod x86 {
     use bevy::math::Vec3A;
 
     use super::ColouredSprings;
+    use crate::solver::engine::simd::x86::{lengths_squared, split_pairs};
 
-    /// One sweep at AVX2.
+    /// The full batches of eight of the springs `start..end` (one colour)
+    /// at AVX2; returns where they end (the rest are left to the caller).
     ///
     /// # Safety
-    /// The CPU must have AVX2, every end must be an index of `x`, and
-    /// every colour must lie within the fields, which have one length.
+    /// The CPU must have AVX2, every end in `start..end` must be an index
+    /// of `x`, and `start..end` must lie within the fields.
     #[target_feature(enable = "avx,avx2,fma")]
-    pub(super) unsafe fn sweep_avx2(springs: ColouredSprings<'_>, x: &mut [Vec3A]) {
+    pub(super) unsafe fn batches_avx2(
+        springs: ColouredSprings<'_>,
+        (start, end): (usize, usize),
+        x: &mut [Vec3A],
+    ) -> usize {
         let ColouredSprings {
-            ends,
-            rest,
-            shares,
-            colours,
-            ..
+            ends, rest, shares, ..
         } = springs;
         let p = x.as_mut_ptr();
         // SAFETY (every access below): `v` is an end, an index of `x`.
         let load = |v: u32| -> __m128 { unsafe { *p.add(v as usize) }.into() };
         let store = |v: u32, value: __m128| unsafe { *p.add(v as usize) = value.into() };
-        for colour in colours.windows(2) {
-            let (start, end) = (colour[0], colour[1]);
-            let mut at = start;
-            while at + 8 <= end {
-                let e = &ends[at..at + 8];
-                // Springs i (low lane) and i + 4 (high lane): [d_i | d_{i+4}].
-                let pair = |i: usize| {
-                    let a = _mm256_set_m128(load(e[i + 4][0]), load(e[i][0]));
-                    let b = _mm256_set_m128(load(e[i + 4][1]), load(e[i][1]));
-                    _mm256_sub_ps(a, b)
-                };
-                let r = [pair(0), pair(1), pair(2), pair(3)];
-                let t0 = _mm256_castps_pd(_mm256_unpacklo_ps(r[0], r[1]));
-                let t1 = _mm256_castps_pd(_mm256_unpacklo_ps(r[2], r[3]));
-                let t2 = _mm256_castps_pd(_mm256_unpackhi_ps(r[0], r[1]));
-                let t3 = _mm256_castps_pd(_mm256_unpackhi_ps(r[2], r[3]));
-                let lx = _mm256_castpd_ps(_mm256_unpacklo_pd(t0, t1));
-                let ly = _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t1));
-                let lz = _mm256_castpd_ps(_mm256_unpacklo_pd(t2, t3));
-                // (x² + y²) + z², no fused multiply–add.
-                let l2 = _mm256_add_ps(
-                    _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly)),
-                    _mm256_mul_ps(lz, lz),
-                );
-                // SAFETY: `rest[at..at + 8]` is eight readable floats.
-                let rest = unsafe { _mm256_loadu_ps(rest[at..at + 8].as_ptr()) };
-                let l = _mm256_sqrt_ps(l2);
-                let raw = _mm256_div_ps(_mm256_sub_ps(l, rest), l);
-                let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(l2, _mm256_setzero_ps());
-                let scale = _mm256_and_ps(raw, positive);
-                // Share pairs: [a_i b_i a_{i+1} b_{i+1} | the same at i + 4].
-                let pairs = |i: usize| -> __m128 {
-                    // SAFETY: two `[f32; 2]`, 16 readable bytes.
-                    unsafe { _mm_loadu_ps(shares[at + i..at + i + 2].as_ptr().cast::<f32>()) }
-                };
-                let s0 = _mm256_set_m128(pairs(4), pairs(0));
-                let s1 = _mm256_set_m128(pairs(6), pairs(2));
-                let share_a = _mm256_shuffle_ps::<0b10_00_10_00>(s0, s1);
-                let share_b = _mm256_shuffle_ps::<0b11_01_11_01>(s0, s1);
-                // Lane i's value over its own spring's record.
-                let broadcast = |v: __m256| {
-                    [
-                        _mm256_permute_ps::<0x00>(v),
-                        _mm256_permute_ps::<0x55>(v),
-                        _mm256_permute_ps::<0xAA>(v),
-                        _mm256_permute_ps::<0xFF>(v),
-                    ]
-                };
-                let (scale, share_a, share_b) =
-                    (broadcast(scale), broadcast(share_a), broadcast(share_b));
-                for i in 0..4 {
-                    let correction = _mm256_mul_ps(r[i], scale[i]);
-                    let to_a = _mm256_mul_ps(share_a[i], correction);
-                    let to_b = _mm256_mul_ps(share_b[i], correction);
-                    let halves = [
-                        (
-                            i,
-                            _mm256_castps256_ps128(to_a),
-                            _mm256_castps256_ps128(to_b),
-                        ),
-                        (
-                            i + 4,
-                            _mm256_extractf128_ps::<1>(to_a),
-                            _mm256_extractf128_ps::<1>(to_b),
-                        ),
-                    ];
-                    for (spring, da, db) in halves {
-                        let [a, b] = e[spring];
-                        store(a, _mm_sub_ps(load(a), da));
-                        store(b, _mm_add_ps(load(b), db));
-                    }
+        let mut at = start;
+        while at + 8 <= end {
+            let e = &ends[at..at + 8];
+            // Springs i (low lane) and i + 4 (high lane): [d_i | d_{i+4}].
+            let pair = |i: usize| {
+                let a = _mm256_set_m128(load(e[i + 4][0]), load(e[i][0]));
+                let b = _mm256_set_m128(load(e[i + 4][1]), load(e[i][1]));
+                _mm256_sub_ps(a, b)
+            };
+            let r = [pair(0), pair(1), pair(2), pair(3)];
+            let l2 = lengths_squared(&r);
+            // SAFETY: `rest[at..at + 8]` is eight readable floats.
+            let rest = unsafe { _mm256_loadu_ps(rest[at..at + 8].as_ptr()) };
+            let l = _mm256_sqrt_ps(l2);
+            let raw = _mm256_div_ps(_mm256_sub_ps(l, rest), l);
+            let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(l2, _mm256_setzero_ps());
+            let scale = _mm256_and_ps(raw, positive);
+            let (share_a, share_b) = split_pairs(&shares[at..at + 8]);
+            // Lane i's value over its own spring's record.
+            let broadcast = |v: __m256| {
+                [
+                    _mm256_permute_ps::<0x00>(v),
+                    _mm256_permute_ps::<0x55>(v),
+                    _mm256_permute_ps::<0xAA>(v),
+                    _mm256_permute_ps::<0xFF>(v),
+                ]
+            };
+            let (scale, share_a, share_b) =
+                (broadcast(scale), broadcast(share_a), broadcast(share_b));
+            for i in 0..4 {
+                let correction = _mm256_mul_ps(r[i], scale[i]);
+                let to_a = _mm256_mul_ps(share_a[i], correction);
+                let to_b = _mm256_mul_ps(share_b[i], correction);
+                let halves = [
+                    (
+                        i,
+                        _mm256_castps256_ps128(to_a),
+                        _mm256_castps256_ps128(to_b),
+                    ),
+                    (
+                        i + 4,
+                        _mm256_extractf128_ps::<1>(to_a),
+                        _mm256_extractf128_ps::<1>(to_b),
+                    ),
+                ];
+                for (spring, da, db) in halves {
+                    let [a, b] = e[spring];
+                    store(a, _mm_sub_ps(load(a), da));
+                    store(b, _mm_add_ps(load(b), db));
                 }
-                at += 8;
             }
-            for e in at..end {
-                let [a, b] = ends[e];
-                let d: Vec3A = (Vec3A::from(load(a))) - Vec3A::from(load(b));
-                let correction = d * super::factor((d.x * d.x + d.y * d.y) + d.z * d.z, rest[e]);
-                store(a, (Vec3A::from(load(a)) - shares[e][0] * correction).into());
-                store(b, (Vec3A::from(load(b)) + shares[e][1] * correction).into());
-            }
+            at += 8;
         }
+        at
     }
+}
+
+/// One spring of the sweep, alone (what a colour's batches leave).
+#[inline(always)]
+fn one_spring(springs: &ColouredSprings<'_>, e: usize, x: &mut [Vec3A]) {
+    let [a, b] = springs.ends[e].map(|i| i as usize);
+    let d = x[a] - x[b];
+    let correction = d * factor((d.x * d.x + d.y * d.y) + d.z * d.z, springs.rest[e]);
+    x[a] -= springs.shares[e][0] * correction;
+    x[b] += springs.shares[e][1] * correction;
 }
 
 /// `(l − L)/l` for `l = √l²`; 0 for a spring of zero length (whose
