@@ -62,8 +62,9 @@ fn scenes() -> [ClothScene; 2] {
     ]
 }
 
-/// The stiff fabric's spring stiffness: its cloth drapes on the sphere
-/// stretched by about 1 % with the `stiff` method (`docs/measurements.md`).
+/// The stiff fabric's spring stiffness: stiff enough that the cloth drapes
+/// on the sphere as a woven fabric does, barely stretched, with the `stiff`
+/// method (the README's screenshot shows its stretch).
 const STIFF_FABRIC_K: f32 = 1e7;
 
 fn parse(mut parser: Parser) -> Result<(LabOptions, Option<ScreenshotMode>), CliError> {

@@ -365,8 +365,8 @@ fn guard_and_measure(
 
 /// One kind of warning, at most one line a second: the first at once, the
 /// ones after it within the second counted and told with one example when
-/// the second is over (100 cloths spawned a second printed 3,355 lines of
-/// 3,400 before). The messages themselves are all sent.
+/// the second is over, so that many cloths do not flood the log with a
+/// line each. The messages themselves are all sent.
 #[derive(Debug, Default)]
 pub(crate) struct WarningLog {
     /// When the last line was printed.

@@ -72,9 +72,9 @@ pub struct ExactSolver {
     /// penalty terms of the objective too (default on), with the stiffness
     /// [`CONTACT_STIFFNESS`](Self::CONTACT_STIFFNESS)` · m_max/dt²`: the
     /// step converges to an implicit step *with* its contacts, and the
-    /// projection after it has little left to move (without them it
-    /// strained stiff cloth on the lab's sphere to 8 % where the physics
-    /// gives 1 %: the stability map's sphere section).
+    /// projection after it has little left to move: alone, that projection
+    /// moves vertices the stiff springs cannot follow within the step, and
+    /// strains the cloth (the stability map's sphere section).
     pub contacts: bool,
 }
 
@@ -105,9 +105,10 @@ impl ExactSolver {
     };
 
     /// A contact's penalty stiffness over the heaviest vertex's `m/dt²`:
-    /// the inertia of one step is a thousandth of the contact's stiffness,
-    /// so a vertex pressed by its weight and its springs' pull stays within
-    /// about a millimetre of the surface on the lab cloth up to k = 1e8.
+    /// stiff enough that a vertex pressed by its weight and its springs'
+    /// pull stays close to the surface (the projection after the step then
+    /// has little to move), and soft enough beside the inertia that the
+    /// Hessian stays well conditioned for the direct solve.
     pub const CONTACT_STIFFNESS: f64 = 1e3;
 
     /// The loosest tolerance still called `exact`: tighter settings are the

@@ -122,8 +122,8 @@ impl Method for PbdSolver {
         }
         // Penalty colliders are projected after the strain limiting (as the
         // lab's sphere is after the step): their force, explicit in the
-        // prediction, launched a cloth resting on a box at c = 1e5 to tens
-        // of metres (`c·dt²/m` ≫ 1).
+        // prediction, launches a cloth resting on a stiff one
+        // (`c·dt²/m` ≫ 1).
         ws.solids.clear();
         ws.solids
             .extend(spheres.iter().map(PenaltySphere::as_shape));

@@ -61,10 +61,9 @@ use crate::solver::engine::sweep::{ColouredSprings, sweep};
 ///
 /// The substep is set by a rate, not a count per step, because what one
 /// sweep leaves undone depends on the substep's length: at a fixed count a
-/// long step (0.1 s) took substeps too long for stiff springs (its stretch
-/// 0.04–0.05 above the reference from k = 1e5) and a short one (1 ms)
+/// long step took substeps too long for stiff springs, and a short one
 /// substeps so short that `f32` positions lost their motion to rounding
-/// (the stability map, `docs/measurements.md`).
+/// (the stability map; the CHANGELOG has the numbers).
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Default, Debug, PartialEq)]
 pub struct XpbdSolver {
@@ -188,9 +187,8 @@ impl Method for XpbdSolver {
         let prev = &mut ws.previous[..n];
 
         // Every collider is projected in the substeps, penalty ones too:
-        // their force, explicit at the substep, bounced the cloth off
-        // elastically (a cloth dropped on a penalty box at c = 800 jumped
-        // back up 1.5 m), where a projection stops it.
+        // their force, explicit at the substep, bounces the cloth off
+        // elastically, where a projection stops it.
         ws.solids.clear();
         ws.solids.extend_from_slice(contacts);
         ws.solids
@@ -255,10 +253,9 @@ impl Method for XpbdSolver {
 /// the substep and begins the next. The velocity at the end is the
 /// predicted one plus the substep's corrections over `h`,
 /// `v ← v + (x − x_predicted)/h`, which is `(x − x_start)/h` in exact
-/// arithmetic; in `f32` the difference of positions far from the origin
-/// lost the motion to rounding (a cloth falling freely for 50 s, 1.5 km
-/// down, ended 23 % of its drop off the reference), while the corrections
-/// are small numbers of their own.
+/// arithmetic; in `f32` a difference of positions far from the origin
+/// loses the substep's motion to the positions' rounding, while the
+/// corrections are small numbers of their own.
 #[inline(always)]
 fn plain_pass(
     x: &mut Vec3A,

@@ -296,10 +296,9 @@ fn runs_are_bitwise_repeatable_and_zero_substeps_are_refused() {
 
 #[test]
 fn a_cloth_far_from_the_origin_keeps_its_velocity_to_f32_precision() {
-    // 1.5 km down at 30 m/s (a cloth falling freely for 50 s): the
-    // position's rounding (1.2e-4 m) over a substep of 1 ms was 0.1 m/s of
-    // velocity noise per substep when the velocity was a difference of
-    // positions.
+    // Far below the origin and falling fast (a cloth falling freely for
+    // 50 s): when the velocity was a difference of positions, the
+    // positions' rounding over a short substep was velocity noise.
     let model = ClothBuilder::lab_grid(5).build().unwrap();
     let params = StepParams {
         damping: 1.0,
