@@ -78,6 +78,12 @@ pub struct Cloth {
     /// (collision, [`Cloth::state_mut`]).
     #[reflect(ignore)]
     pub(crate) measured: Option<crate::solver::Measured>,
+    /// Each pinned vertex and where the last step left it: a pin's
+    /// velocity at the next step is its displacement since, wherever it
+    /// was moved (the fixed step's pinning, or the follow after `Update`).
+    /// Cleared by anything that places or edits the state.
+    #[reflect(ignore)]
+    pub(crate) pins_stepped: Vec<(u32, Vec3A)>,
 }
 
 /// Places a cloth's rest shape at its entity's global transform as soon as the
@@ -146,6 +152,7 @@ impl Cloth {
     #[inline]
     pub fn state_mut(&mut self) -> ClothStateMut<'_> {
         self.measured = None;
+        self.pins_stepped.clear();
         ClothStateMut {
             positions: &mut self.state.positions,
             velocities: &mut self.state.velocities,
@@ -161,6 +168,7 @@ impl Cloth {
         crate::solver::params::check_state(&self.model, &state)?;
         self.state = state;
         self.measured = None;
+        self.pins_stepped.clear();
         self.initialized = true;
         self.placed_at = None;
         Ok(())
@@ -198,9 +206,35 @@ impl Cloth {
         self.state = ClothState::at_rest(&self.model, affine);
         self.last_good.copy_from(&self.state);
         self.measured = None;
+        self.pins_stepped.clear();
         // Held vertices are taken again, from rest, at the next step.
         self.attached.clear();
         self.initialized = true;
+    }
+
+    /// Gives each pin the velocity of its displacement since the last step
+    /// (over `dt`), if that step had the same pins: the fixed step's
+    /// pinning computes it too, but a pin already moved after `Update`
+    /// (`ClothFollowSystems`) has no displacement left there. A method that
+    /// moves pins along their motion within the step (`stiff`) reads it.
+    pub(crate) fn pin_velocities(&mut self, dt: f32) {
+        let pins = self.model.pins();
+        if dt <= 0.0
+            || self.pins_stepped.len() != pins.len()
+            || self
+                .pins_stepped
+                .iter()
+                .zip(pins)
+                .any(|(&(v, _), &p)| v != p)
+        {
+            return;
+        }
+        for &(p, before) in &self.pins_stepped {
+            let v = (self.state.positions[p as usize] - before) / dt;
+            if v.is_finite() {
+                self.state.velocities[p as usize] = v;
+            }
+        }
     }
 }
 

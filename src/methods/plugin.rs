@@ -265,6 +265,7 @@ fn step_cloths<M: ClothMethod>(
                 .chain(colliders.shapes.iter().copied())
                 .map(|s| s.grown(particle_radius)),
         );
+        cloth.pin_velocities(dt as f32);
         let (penalty, contacts, solver_ws) = (&ws.penalty, &ws.contacts, &mut ws.solver);
         let model = &cloth.model;
         let method = &*method;
@@ -290,6 +291,14 @@ fn step_cloths<M: ClothMethod>(
         );
         let elapsed = start.elapsed();
         stats.method = method.name();
+        // Where the step left the pins (see `Cloth::pin_velocities`).
+        cloth.pins_stepped.clear();
+        cloth.pins_stepped.extend(
+            model
+                .pins()
+                .iter()
+                .map(|&p| (p, cloth.state.positions[p as usize])),
+        );
         match result {
             Ok(done) => {
                 // Penalty contacts (projection contacts are counted by the

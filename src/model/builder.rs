@@ -17,6 +17,11 @@ pub enum Mass {
     Total(f32),
     /// One mass per vertex.
     Each(Vec<f32>),
+    /// Mass per unit area (kg/m²): each triangle's mass, its area times
+    /// this, goes a third to each of its corners (a lumped mass matrix), so
+    /// a vertex on the edge weighs about half an inner one and the cloth
+    /// weighs the same at every resolution.
+    Areal(f32),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -230,6 +235,15 @@ impl ClothBuilder {
         self
     }
 
+    /// Mass per unit area in kg/m² ([`Mass::Areal`]): each vertex weighs a
+    /// third of its triangles' mass, so the cloth weighs the same at every
+    /// resolution. A vertex in no triangle, or only in triangles without
+    /// area, gets no mass: [`ClothBuildError::InvalidMass`].
+    pub fn with_areal_density(mut self, density: f32) -> Self {
+        self.mass = Mass::Areal(density);
+        self
+    }
+
     /// One mass per vertex. For [`from_mesh`](Self::from_mesh): per vertex
     /// after welding (the mesh's order with each seam copy dropped), and the
     /// masses follow the cloth's renumbering (see
@@ -382,6 +396,12 @@ impl ClothBuilder {
             return Err(ClothBuildError::NoTriangles);
         }
         let masses = match self.mass {
+            Mass::Areal(density) => {
+                if !(density.is_finite() && density > 0.0) {
+                    return Err(ClothBuildError::InvalidDensity(density));
+                }
+                lumped_masses(&positions, &triangles, density)
+            }
             Mass::PerVertex(m) => vec![m; n],
             Mass::Total(m) => vec![m / n as f32; n],
             Mass::Each(ms) => {
@@ -424,6 +444,25 @@ impl ClothBuilder {
         model.welded_from = weld_map.map(Arc::new);
         Ok(model)
     }
+}
+
+/// Per vertex, a third of the mass (`density` times the area) of each
+/// triangle it is a corner of; a corner index out of range is left to the
+/// triangle checks.
+fn lumped_masses(positions: &[Vec3], triangles: &[[u32; 3]], density: f32) -> Vec<f32> {
+    let n = positions.len();
+    let mut masses = vec![0.0f64; n];
+    for t in triangles {
+        if t.iter().any(|&i| i as usize >= n) {
+            continue;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let area = 0.5 * f64::from((b - a).cross(c - a).length());
+        for &i in t {
+            masses[i as usize] += area * f64::from(density) / 3.0;
+        }
+    }
+    masses.into_iter().map(|m| m as f32).collect()
 }
 
 /// A spring to build: its two vertices and its kind.

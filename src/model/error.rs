@@ -43,7 +43,12 @@ pub enum ClothBuildError {
         /// The offending vertex.
         vertex: usize,
     },
-    /// A vertex mass is zero, negative or not finite.
+    /// An areal density ([`Mass::Areal`](super::Mass::Areal)) is zero,
+    /// negative or not finite.
+    #[error("areal density {0} kg/m² must be finite and positive")]
+    InvalidDensity(f32),
+    /// A vertex mass is zero, negative or not finite (from an areal
+    /// density: the vertex is in no triangle with area).
     #[error("vertex {vertex} has mass {mass}; masses must be finite and positive")]
     InvalidMass {
         /// The offending vertex (0 for a uniform or total mass).

@@ -533,3 +533,34 @@ fn stats_measure_the_state_after_collision() {
         assert!(touched > 10, "{collider:?}: only {touched} contacts");
     }
 }
+
+/// Moves every cloth entity 0.1 along x per frame, in `Update`.
+fn walk(mut cloths: Query<&mut Transform, With<Cloth>>) {
+    for mut transform in &mut cloths {
+        transform.translation.x += 0.1;
+    }
+}
+
+#[test]
+fn a_pin_moved_in_update_steps_with_its_velocity() {
+    // The follow after `Update` puts the pins in place before the next
+    // fixed step: their velocity there is still their motion since the
+    // last step, which `stiff` spreads over its substeps.
+    let mut app = app_with((ClothPlugins::default(), TransformPlugin));
+    let cloth = spawn_lab(&mut app, XpbdSolver::default());
+    app.add_systems(Update, walk);
+    run_steps(&mut app, 10);
+    let world = app.world();
+    let state = world.get::<Cloth>(cloth).unwrap().state();
+    for pin in [0, 20] {
+        let v = state.velocities[pin];
+        assert!(
+            (v.x - 0.1 / DT as f32).abs() < 1e-3 && v.y == 0.0 && v.z == 0.0,
+            "pin {pin}: {v}"
+        );
+    }
+    // The cloth came along, without a jump at its pins.
+    assert!(state.positions[220].x > 0.1, "{}", state.positions[220]);
+    let stats = world.get::<ClothStats>(cloth).unwrap();
+    assert!(stats.is_running() && stats.max_stretch < 0.5, "{stats:?}");
+}

@@ -42,15 +42,17 @@
 mod colouring;
 #[cfg(test)]
 mod tests;
+mod tethers;
 
 use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use self::colouring::{Colouring, Links};
+use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::collision::{PenaltySphere, Shape};
-use crate::model::ClothState;
+use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
 /// Steps a cloth by XPBD with small steps: substeps of one Gauss–Seidel
@@ -70,17 +72,33 @@ pub struct XpbdSolver {
     /// Substeps per second: a step of `dt` takes `⌈dt·rate⌉` substeps (at
     /// least one), each one sweep over the springs.
     pub substep_rate: u32,
+    /// Whether each free vertex is tethered to its nearest pin (long-range
+    /// attachments, Kim et al. 2012): no further from it than at rest,
+    /// times a slack that lets the springs stretch as far as the cloth's
+    /// weight can stretch them (see the module docs). It takes back the
+    /// sag one sweep per substep leaves in a long hanging cloth.
+    pub tethers: bool,
 }
 
 impl XpbdSolver {
     /// The `stiff` preset: 960 substeps per second (32 per step of the
     /// lab's 30 Hz, as many spring passes as its 32 Chebyshev iterations;
-    /// 16 per step at 60 Hz).
+    /// 16 per step at 60 Hz), with tethers.
     pub const STIFF: Self = Self::new(960);
 
-    /// With `substep_rate` substeps per second.
+    /// With `substep_rate` substeps per second, and tethers.
     pub const fn new(substep_rate: u32) -> Self {
-        Self { substep_rate }
+        Self {
+            substep_rate,
+            tethers: true,
+        }
+    }
+
+    /// The same method with tethers on or off.
+    #[must_use]
+    pub const fn with_tethers(mut self, on: bool) -> Self {
+        self.tethers = on;
+        self
     }
 
     /// The same method with `substeps` substeps per step of `dt` seconds
@@ -88,7 +106,10 @@ impl XpbdSolver {
     #[must_use]
     pub fn with_substeps(self, substeps: u32, dt: f64) -> Self {
         let rate = (f64::from(substeps) / dt).ceil().min(f64::from(u32::MAX)) as u32;
-        let mut method = Self::new(rate.max(1));
+        let mut method = Self {
+            substep_rate: rate.max(1),
+            ..self
+        };
         // ⌈dt·rate⌉ can exceed the count by rounding: step the rate down.
         while method.substeps(dt) > substeps && method.substep_rate > 1 {
             method.substep_rate -= 1;
@@ -201,33 +222,74 @@ impl Method for XpbdSolver {
         // and begins the next (prediction), so each substep reads them once.
         // Without penalty spheres or solids it is a plain loop (the general
         // one kept its constants on the stack: a third of the lab step).
-        let plain = contacts.is_empty();
+        let tethered = self.tethers && !model.pins().is_empty() && {
+            ws.tethers.update(model);
+            ws.tethers.any()
+        };
+        // Pins move along their step's motion (their velocity, the
+        // displacement over the step) one substep at a time: at the step's
+        // start all at once, they would drag the springs at their ends
+        // through what one sweep cannot pass on.
+        let pins = model.pins();
+        ws.pin_paths.clear();
+        ws.pin_paths.extend(
+            pins.iter()
+                .map(|&p| (x[p as usize], v[p as usize] * params.dt as f32)),
+        );
+        let moving = ws.pin_paths.iter().any(|&(_, shift)| shift != Vec3A::ZERO);
+        ws.anchors.clear();
+        let mut slack = 1.0;
+        if tethered {
+            slack = tethers::slack(model, params.gravity, k[SpringKind::Stretch as usize]);
+            ws.anchors.extend(ws.pin_paths.iter().map(|&(end, _)| end));
+        }
+        let ties = if tethered { &ws.tethers.ties[..n] } else { &[] };
+        let plain = contacts.is_empty() && !tethered;
         let fall = h * gravity;
-        let pass =
-            |x: &mut [Vec3A], v: &mut [Vec3A], prev: &mut [[Vec3A; 2]], end: bool, begin: bool| {
-                let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
-                let vertices = vertices.zip(pinned.iter().zip(masses));
-                if plain {
-                    for (((x, v), p), (&pinned, _)) in vertices {
-                        if !pinned {
-                            plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
+        let pass = |x: &mut [Vec3A],
+                    v: &mut [Vec3A],
+                    prev: &mut [[Vec3A; 2]],
+                    anchors: &[Vec3A],
+                    end: bool,
+                    begin: bool| {
+            let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
+            let vertices = vertices.zip(pinned.iter());
+            if plain {
+                for (((x, v), p), &pinned) in vertices {
+                    if !pinned {
+                        plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
+                    }
+                }
+                return 0;
+            }
+            if contacts.is_empty() {
+                // Tethers only.
+                for ((((x, v), p), &pinned), &(place, rest)) in vertices.zip(ties) {
+                    if !pinned {
+                        if end {
+                            hold(x, anchors[place as usize], rest * slack);
                         }
+                        plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
                     }
-                    return 0;
                 }
-                let mut touching = 0;
-                for (((x, v), p), (&pinned, _)) in vertices {
-                    if pinned {
-                        continue;
-                    }
-                    if end {
-                        touching += u32::from(project(x, p[0], solids));
-                    }
-                    plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
+                return 0;
+            }
+            let mut touching = 0;
+            for (i, (((x, v), p), &pinned)) in vertices.enumerate() {
+                if pinned {
+                    continue;
                 }
-                touching
-            };
-        pass(x, v, prev, false, true);
+                if end {
+                    if let Some(&(place, rest)) = ties.get(i) {
+                        hold(x, anchors[place as usize], rest * slack);
+                    }
+                    touching += u32::from(project(x, p[0], solids));
+                }
+                plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
+            }
+            touching
+        };
+        pass(x, v, prev, &[], false, true);
         let springs = ColouredSprings::new(
             &ws.links.ends,
             &ws.links.rest,
@@ -237,8 +299,18 @@ impl Method for XpbdSolver {
         );
         let mut contacts_held = 0;
         for substep in 1..=substeps {
+            if moving {
+                // Where the pins are at this substep's end.
+                let behind = 1.0 - substep as f32 / substeps as f32;
+                for (&p, &(end, shift)) in pins.iter().zip(&ws.pin_paths) {
+                    x[p as usize] = end - shift * behind;
+                }
+                for (anchor, &p) in ws.anchors.iter_mut().zip(pins) {
+                    *anchor = x[p as usize];
+                }
+            }
             sweep(params.simd, springs, x);
-            contacts_held = pass(x, v, prev, true, substep < substeps);
+            contacts_held = pass(x, v, prev, &ws.anchors, true, substep < substeps);
         }
         Ok(StepReport {
             iterations: substeps,
@@ -335,6 +407,14 @@ pub struct XpbdWorkspace {
     solids: Vec<Shape>,
     /// Per solid, its quick test ([`bound`]).
     bounds: Vec<Bound>,
+    /// Each vertex's nearest pin and rest distance (taken once per topology
+    /// and pins).
+    tethers: Tethers,
+    /// The pins' positions at the current substep (the tethers' anchors);
+    /// empty without tethers.
+    anchors: Vec<Vec3A>,
+    /// Per pin: its position at the step's end and its motion over the step.
+    pin_paths: Vec<(Vec3A, Vec3A)>,
 }
 
 impl XpbdWorkspace {

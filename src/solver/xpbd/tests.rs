@@ -318,3 +318,155 @@ fn a_cloth_far_from_the_origin_keeps_its_velocity_to_f32_precision() {
         assert!((v.y - expected).abs() < 1e-4, "{} against {expected}", v.y);
     }
 }
+
+/// A square cape `side` metres wide of `n×n` vertices, level at `y = 0`,
+/// pinned along its edge `z = 0`, of `mass` kilograms.
+fn cape(n: usize, side: f32, mass: f32) -> ClothModel {
+    ClothBuilder::grid(
+        n,
+        n,
+        Vec3::new(side / 2.0, 0.0, 0.0),
+        Vec3::new(-side / 2.0, 0.0, 0.0),
+        Vec3::new(side / 2.0, 0.0, side),
+    )
+    .with_total_mass(mass)
+    .with_pins(0..n as u32)
+    .build()
+    .unwrap()
+}
+
+#[test]
+fn tethers_take_back_the_sag_of_a_long_cape_and_hold_each_vertex_to_its_pin() {
+    // A 64² cape of 1 kg at 60 Hz swings down from level: one sweep per
+    // substep leaves its long columns stretched by what it cannot pass on.
+    // Judged from its second second (the first swing's bottom is the
+    // worst moment, and with tethers still a little over 5 %).
+    let model = cape(64, 2.0, 1.0);
+    let params = stiff(8000.0, 1.0 / 60.0);
+    let worst = |method: XpbdSolver| {
+        let mut worst = 0.0f32;
+        let mut steps = 0;
+        run_with_contacts(method, &model, &params, &[], 150, |state| {
+            steps += 1;
+            if steps > 60 {
+                worst = worst.max(max_stretch(&model, &state.positions));
+            }
+        });
+        worst
+    };
+    let loose = worst(XpbdSolver::STIFF.with_tethers(false));
+    let tethered = worst(XpbdSolver::STIFF);
+    assert!(loose > 0.08, "without tethers: {loose}");
+    assert!(tethered < 0.05, "with tethers: {tethered}");
+
+    // Every vertex ends within its limit of its pin, and the tether of a
+    // vertex in column i hangs from the pin above it (a straight line).
+    let state = run_with_contacts(XpbdSolver::STIFF, &model, &params, &[], 30, |_| {});
+    let mut tethers = Tethers::default();
+    tethers.update(&model);
+    let slack = tethers::slack(&model, params.gravity, 8000.0);
+    assert!(slack > 1.0 && slack < 1.01, "{slack}");
+    let rest = model.topology().rest_positions();
+    for (i, &(place, length)) in tethers.ties.iter().enumerate() {
+        if i < 64 {
+            assert!(length.is_infinite(), "a pin has no tether");
+            continue;
+        }
+        assert_eq!(place as usize, i % 64, "vertex {i}");
+        let pin = model.pins()[place as usize] as usize;
+        assert!((length - rest[i].distance(rest[pin])).abs() < 1e-5);
+        let reach = state.positions[i].distance(state.positions[pin]);
+        assert!(reach <= length * slack * (1.0 + 1e-5), "vertex {i}");
+    }
+}
+
+#[test]
+fn a_tether_follows_the_cloth_round_a_notch_and_along_a_curved_rest_shape() {
+    // An L of three squares pinned at the end of one arm: the other arm's
+    // far corner is reached round the inner corner, not in a straight line
+    // across the missing square.
+    let positions = vec![
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(2.0, 1.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+        Vec3::new(1.0, 2.0, 0.0),
+    ];
+    // Squares (0,1,4,3), (1,2,5,4), (3,4,7,6): no square at (1..2, 1..2).
+    let indices = vec![0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4, 3, 4, 7, 3, 7, 6];
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .with_pins([2])
+        .build()
+        .unwrap();
+    let mut tethers = Tethers::default();
+    tethers.update(&model);
+    // Vertex 7 at (1, 2): straight to (2, 0) is √5 ≈ 2.24 across the
+    // notch; along the springs (7→4→5→2) it is 3.
+    let (_, length) = tethers.ties[7];
+    assert!((length - 3.0).abs() < 1e-5, "{length}");
+    // Vertex 4 at (1, 1): no spring joins it to 2; the path 4→5→2 is 2,
+    // 41 % longer than the straight √2 (past a grid's zig-zag): the path.
+    let (_, length) = tethers.ties[4];
+    assert!((length - 2.0).abs() < 1e-5, "{length}");
+
+    // A rest shape bent into a half cylinder: a chord is shorter than the
+    // cloth between, so the tether keeps the path along the springs.
+    let n = 9;
+    let model = ClothBuilder::grid(
+        n,
+        n,
+        Vec3::ZERO,
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 1.0),
+    )
+    .build()
+    .unwrap();
+    let bent: Vec<Vec3> = model
+        .topology()
+        .rest_positions()
+        .iter()
+        .map(|p| {
+            let a = p.z * std::f32::consts::PI;
+            Vec3::new(
+                p.x,
+                a.sin() / std::f32::consts::PI,
+                -a.cos() / std::f32::consts::PI,
+            )
+        })
+        .collect();
+    let model = ClothBuilder::from_triangles(bent, model.topology().triangles().concat())
+        .with_pins([0])
+        .build()
+        .unwrap();
+    let mut tethers = Tethers::default();
+    tethers.update(&model);
+    let rest = model.topology().rest_positions();
+    // The vertex across the arc from the pin (x = 0, z = 1): the arc is
+    // about 1 long, its chord 2/π.
+    let far = n * (n - 1);
+    let (_, length) = tethers.ties[far];
+    assert!(length > 0.99, "{length}");
+    assert!(rest[far].distance(rest[0]) < 0.7);
+}
+
+#[test]
+fn tethers_never_bind_on_cloth_their_slack_lets_stretch() {
+    // The lab's cloth (441 kg at k = 8000) stretches by a third where it
+    // hangs, far within its slack: with tethers or without, the same bits.
+    let model = lab();
+    let params = StepParams::LAB;
+    let with = run_with_contacts(XpbdSolver::STIFF, &model, &params, &[], 60, |_| {});
+    let without = run_with_contacts(
+        XpbdSolver::STIFF.with_tethers(false),
+        &model,
+        &params,
+        &[],
+        60,
+        |_| {},
+    );
+    assert_eq!(with.positions, without.positions);
+    assert!(max_stretch(&model, &with.positions) > 0.1);
+}
