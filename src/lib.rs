@@ -415,7 +415,7 @@ pub mod prelude {
         ProjectivePlugin, SymplecticPlugin, XpbdPlugin,
     };
     pub use crate::model::{
-        ClothBuildError, ClothBuilder, ClothModel, ClothState, mesh_vertices_where,
+        ClothBuildError, ClothBuilder, ClothMaterial, ClothModel, ClothState, mesh_vertices_where,
     };
     pub use crate::solver::StepError;
     pub use crate::solver::exact::ExactSolver;

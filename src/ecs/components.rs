@@ -84,6 +84,10 @@ pub struct Cloth {
     /// Cleared by anything that places or edits the state.
     #[reflect(ignore)]
     pub(crate) pins_stepped: Vec<(u32, Vec3A)>,
+    /// The density a [`ClothMaterial`](crate::model::ClothMaterial)
+    /// component last gave the model's masses.
+    #[reflect(ignore)]
+    pub(crate) density_applied: Option<f32>,
 }
 
 /// Places a cloth's rest shape at its entity's global transform as soon as the

@@ -15,6 +15,7 @@ use super::{
     ClothParams, ClothSchedule, ClothScheduleSystems, ClothStats, ClothStatus, ClothSystems,
     GuardAction,
 };
+use crate::model::ClothMaterial;
 use crate::solver;
 
 /// Registers the cloth components and messages, adds [`ClothSchedule`]
@@ -49,6 +50,7 @@ impl Plugin for ClothCorePlugin {
             .register_type::<ClothParams>()
             .register_type::<ClothStats>()
             .register_type::<ClothGuard>()
+            .register_type::<ClothMaterial>()
             .init_resource::<ClothMethods>()
             .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()
@@ -99,6 +101,10 @@ impl Plugin for ClothCorePlugin {
             .add_systems(
                 ClothSchedule,
                 (
+                    apply_materials
+                        .in_set(ClothSystems::SyncIn)
+                        .before(place_and_pin)
+                        .run_if(any_with_component::<ClothMaterial>),
                     place_and_pin.in_set(ClothSystems::SyncIn),
                     super::attach::hold_attached
                         .in_set(ClothSystems::SyncIn)
@@ -179,6 +185,36 @@ fn simulation_running(simulation: Res<ClothSimulation>) -> bool {
 fn count_requested_step(mut simulation: ResMut<ClothSimulation>) {
     if simulation.paused && simulation.requested > 0 {
         simulation.requested -= 1;
+    }
+}
+
+/// Gives each cloth with a [`ClothMaterial`] its springs' stiffness (every
+/// step: a changed material or model acts at once) and, when its density or
+/// model is new, its vertices' masses. An invalid density is reported once
+/// and leaves the masses as they were; invalid moduli reach the parameters,
+/// where the step refuses them with a typed error.
+fn apply_materials(mut cloths: Query<(Entity, &ClothMaterial, &mut Cloth, &mut ClothParams)>) {
+    for (entity, material, mut cloth, mut params) in &mut cloths {
+        let stiffness = material.spring_stiffness(&cloth.model);
+        if params.stiffness != stiffness {
+            params.stiffness = stiffness;
+        }
+        if cloth.density_applied == Some(material.density) {
+            continue;
+        }
+        let cloth = &mut *cloth;
+        cloth.density_applied = Some(material.density);
+        if !(material.density.is_finite() && material.density > 0.0) {
+            warn!(
+                "cloth {entity}: {}; its masses are unchanged",
+                crate::solver::ParamError::Density(material.density)
+            );
+            continue;
+        }
+        let masses = material.masses(cloth.model.topology());
+        if let Err(error) = cloth.model.set_masses(masses) {
+            warn!("cloth {entity}: its material gives {error}; its masses are unchanged");
+        }
     }
 }
 

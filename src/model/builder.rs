@@ -235,6 +235,15 @@ impl ClothBuilder {
         self
     }
 
+    /// The masses of `material`: its areal density
+    /// ([`with_areal_density`](Self::with_areal_density)). Its stiffness goes
+    /// to the cloth's parameters
+    /// ([`ClothMaterial::spring_stiffness`](super::ClothMaterial::spring_stiffness)),
+    /// or put the material on the cloth entity, which does both.
+    pub fn with_material(self, material: super::ClothMaterial) -> Self {
+        self.with_areal_density(material.density)
+    }
+
     /// Mass per unit area in kg/m² ([`Mass::Areal`]): each vertex weighs a
     /// third of its triangles' mass, so the cloth weighs the same at every
     /// resolution. A vertex in no triangle, or only in triangles without
@@ -449,7 +458,7 @@ impl ClothBuilder {
 /// Per vertex, a third of the mass (`density` times the area) of each
 /// triangle it is a corner of; a corner index out of range is left to the
 /// triangle checks.
-fn lumped_masses(positions: &[Vec3], triangles: &[[u32; 3]], density: f32) -> Vec<f32> {
+pub(crate) fn lumped_masses(positions: &[Vec3], triangles: &[[u32; 3]], density: f32) -> Vec<f32> {
     let n = positions.len();
     let mut masses = vec![0.0f64; n];
     for t in triangles {

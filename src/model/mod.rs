@@ -6,6 +6,7 @@
 
 mod builder;
 mod error;
+mod material;
 mod order;
 mod state;
 pub(crate) mod stencil;
@@ -17,6 +18,7 @@ use bevy::math::Vec3;
 
 pub use builder::{ClothBuilder, Mass, mesh_vertices_where};
 pub use error::{ClothBuildError, MeshReadError};
+pub use material::ClothMaterial;
 pub use state::ClothState;
 pub use topology::{Adjacency, ClothTopology, Incidence, Spring, SpringKind};
 
@@ -129,6 +131,29 @@ impl ClothModel {
             self.pinned[p as usize] = true;
         }
         self.pins = pins;
+        Ok(())
+    }
+
+    /// Replaces the vertices' masses (a material's density applied at run
+    /// time, say). Every method notices at its next step (the factorising
+    /// ones refactorise). On error the masses are unchanged:
+    /// [`ClothBuildError::MassCountMismatch`] or
+    /// [`ClothBuildError::InvalidMass`].
+    pub fn set_masses(&mut self, masses: Vec<f32>) -> Result<(), ClothBuildError> {
+        if masses.len() != self.vertex_count() {
+            return Err(ClothBuildError::MassCountMismatch {
+                got: masses.len(),
+                vertex_count: self.vertex_count(),
+            });
+        }
+        if let Some((vertex, &mass)) = masses
+            .iter()
+            .enumerate()
+            .find(|&(_, &m)| !(m.is_finite() && m > 0.0))
+        {
+            return Err(ClothBuildError::InvalidMass { vertex, mass });
+        }
+        self.masses = masses;
         Ok(())
     }
 

@@ -438,3 +438,94 @@ fn pins_are_picked_by_a_painted_attribute() {
         Err(MeshReadError::MissingAttribute("Vertex_Uv"))
     );
 }
+
+/// A `side`-metre square grid of `n×n` vertices in the `y = 0` plane.
+fn square(n: usize, side: f32) -> ClothBuilder {
+    ClothBuilder::grid(
+        n,
+        n,
+        Vec3::ZERO,
+        Vec3::new(side, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, side),
+    )
+}
+
+#[test]
+fn a_material_weighs_and_stretches_the_same_at_every_resolution() {
+    let material = ClothMaterial::COTTON;
+    for n in [16, 32, 64] {
+        let model = square(n, 2.0).with_material(material).build().unwrap();
+        // Masses: 4 m² of 0.25 kg/m², an edge vertex half an inner one.
+        let masses = model.masses();
+        let total: f32 = masses.iter().sum();
+        assert!((total - 1.0).abs() < 1e-4, "{n}: {total}");
+        let inner = masses[n + 1];
+        assert!((masses[1] / inner - 0.5).abs() < 1e-4, "{n}");
+        // Stiffness: a uniform strain ε along x stores ½·E·ε² per m² (the
+        // grid's modulus along x is within a few per cent of the mean).
+        let k = material.spring_stiffness(&model);
+        let eps = 1e-3f32;
+        let rest = model.topology().rest_positions();
+        let energy: f64 = model
+            .topology()
+            .springs()
+            .iter()
+            .map(|s| {
+                let [a, b] = [s.a, s.b].map(|i| rest[i as usize] * Vec3::new(1.0 + eps, 1.0, 1.0));
+                let dl = f64::from(a.distance(b) - s.rest_length);
+                0.5 * f64::from(k.of(s.kind)) * dl * dl
+            })
+            .sum();
+        let modulus = energy / 4.0 / (0.5 * f64::from(eps) * f64::from(eps));
+        let ratio = modulus / f64::from(material.stretch);
+        assert!((0.97..1.03).contains(&ratio), "{n}: {ratio}");
+    }
+    // The lab's k = 8000 is a sheet of about 12 kN/m (within the border's
+    // share at 21²).
+    let lab = ClothBuilder::lab().build().unwrap();
+    let k = material.spring_stiffness(&lab).stretch;
+    assert!((k / 8000.0 - 1.0).abs() < 0.03, "{k}");
+}
+
+#[test]
+fn bad_densities_and_masses_are_typed_errors() {
+    assert!(matches!(
+        square(4, 1.0).with_areal_density(f32::NAN).build(),
+        Err(ClothBuildError::InvalidDensity(d)) if d.is_nan()
+    ));
+    assert!(matches!(
+        square(4, 1.0).with_areal_density(-1.0).build(),
+        Err(ClothBuildError::InvalidDensity(d)) if d == -1.0
+    ));
+    // A vertex in no triangle gets no mass from a density.
+    let mut positions = vec![Vec3::ZERO, Vec3::X, Vec3::Z];
+    positions.push(Vec3::ONE);
+    assert!(matches!(
+        ClothBuilder::from_triangles(positions, vec![0, 1, 2])
+            .with_areal_density(1.0)
+            .build(),
+        Err(ClothBuildError::InvalidMass { vertex: 3, .. })
+    ));
+    let mut model = square(4, 1.0).build().unwrap();
+    let before = model.masses().to_vec();
+    assert!(matches!(
+        model.set_masses(vec![1.0; 3]),
+        Err(ClothBuildError::MassCountMismatch {
+            got: 3,
+            vertex_count: 16
+        })
+    ));
+    assert!(matches!(
+        model.set_masses(vec![0.0; 16]),
+        Err(ClothBuildError::InvalidMass { vertex: 0, .. })
+    ));
+    assert_eq!(model.masses(), before);
+    assert!(ClothMaterial::COTTON.with_density(0.0).validate().is_err());
+    assert!(
+        ClothMaterial::COTTON
+            .with_stretch(f32::INFINITY)
+            .validate()
+            .is_err()
+    );
+    assert!(ClothMaterial::COTTON.validate().is_ok());
+}

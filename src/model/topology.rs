@@ -224,6 +224,9 @@ pub struct ClothTopology {
     springs: Vec<Spring>,
     adjacency: Adjacency,
     kind_counts: [usize; 3],
+    /// Per spring kind, the stiffness per spring of one N/m of sheet
+    /// modulus (see [`ClothMaterial`](super::ClothMaterial)).
+    sheet: [f32; 3],
     /// The springs as offset families, when they form a stencil (a grid
     /// numbered row by row): what the implicit iteration's
     /// structure-of-arrays kernels run on.
@@ -290,14 +293,33 @@ impl ClothTopology {
             kind_counts[s.kind as usize] += 1;
         }
         let stencil = Stencil::build(n, &springs);
+        let area: f64 = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| rest_positions[i as usize]);
+                0.5 * f64::from((b - a).cross(c - a).length())
+            })
+            .sum();
+        let sheet = super::material::sheet_factors(area as f32, &springs);
         Ok(Self {
             rest_positions,
             triangles,
             springs,
             adjacency,
             kind_counts,
+            sheet,
             stencil,
         })
+    }
+
+    /// Per spring kind (indexed by `SpringKind as usize`), the stiffness
+    /// per spring that gives the sheet a mean modulus of 1 N/m:
+    /// `A/((3/8)·Σ L²)` over the springs of that kind, `A` the rest
+    /// triangles' area (1 for a kind the cloth does not have). See
+    /// [`ClothMaterial`](super::ClothMaterial).
+    #[inline]
+    pub fn sheet_factors(&self) -> [f32; 3] {
+        self.sheet
     }
 
     /// Number of vertices.

@@ -245,6 +245,9 @@ pub enum ParamError {
     /// A convergence tolerance is not a positive number.
     #[error("convergence tolerance {0} must be positive (or infinite to turn the check off)")]
     ConvergenceTolerance(f32),
+    /// An areal density is zero, negative or not finite.
+    #[error("areal density {0} kg/m² must be finite and positive")]
+    Density(f32),
     /// Two accelerations were asked of one solver (projective dynamics'
     /// Chebyshev and Anderson).
     #[error("choose one acceleration: Chebyshev or Anderson, not both")]
