@@ -463,6 +463,11 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                     .logarithmic(true),
             )
             .on_hover_text("each substep is one sweep over the springs; 960: 32 per 30 Hz step");
+            ui.checkbox(&mut x.tethers, "tethers to the pins")
+                .on_hover_text(
+                    "each vertex no further from its nearest pin than at rest, plus the stretch \
+                     the cloth's weight allows: takes back the sag of long hanging cloth",
+                );
         }
         AnyMethod::Exact(x) => {
             let mut exponent = x.tolerance.log10();
