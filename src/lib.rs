@@ -120,9 +120,10 @@
 //! - The projected solids also reach the method inside its step
 //!   ([`solver::StepInput::contacts`]): `stiff` ([`XpbdSolver`]) projects
 //!   them in every substep, `newton` and `exact` ([`ExactSolver::contacts`])
-//!   add them to their objective as penalties, so stiff cloth in contact is
-//!   not strained by the projection after the step; the other methods leave
-//!   them to that projection.
+//!   and `pd` and `pd-anderson` ([`ProjectiveSolver::contacts`]) add them to
+//!   their objective as penalties, so stiff cloth in contact is not strained
+//!   by the projection after the step; the lab's and the assignment's
+//!   methods leave them to that projection, as their specifications do.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)

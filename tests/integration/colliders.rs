@@ -287,3 +287,27 @@ fn stiff_cloth_on_a_sphere_keeps_its_length_with_the_contacts_inside_the_step() 
         "{projected} against {newton}"
     );
 }
+
+#[test]
+fn projective_dynamics_keeps_stiff_cloth_on_a_sphere_at_its_length_with_the_contacts_in_its_objective()
+ {
+    // `pd` and `pd-anderson` take the sphere as a projective penalty term
+    // (`ProjectiveSolver::contacts`), as `newton` does: the projection
+    // after the step has little left to do, and the cloth keeps its length.
+    for preset in ["pd", "pd-anderson"] {
+        let (with, _) = stiff_cloth_on_the_sphere(preset.parse().unwrap());
+        assert!(with < 0.02, "{preset} stretched {with}");
+        let AnyMethod::Projective(pd) = preset.parse().unwrap() else {
+            unreachable!()
+        };
+        let without = AnyMethod::Projective(ProjectiveSolver {
+            contacts: false,
+            ..pd
+        });
+        let (projected, _) = stiff_cloth_on_the_sphere(without);
+        assert!(
+            projected > 2.0 * with,
+            "{preset}: {projected} against {with}"
+        );
+    }
+}

@@ -101,6 +101,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::chebyshev::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
+use crate::collision::PenaltySphere;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
 use crate::solver::engine::kernels::Springs;
@@ -172,6 +173,14 @@ pub struct ProjectiveSolver {
     /// only (see [`ProjectiveWorkspace`]'s estimate): with Anderson
     /// acceleration it is [`ParamError::Tolerance`].
     pub tolerance: f64,
+    /// The solids projected after the step ([`StepInput::contacts`]) as
+    /// penalty terms of the objective too, like the penalty spheres, at
+    /// [`ExactSolver::CONTACT_STIFFNESS`](crate::solver::exact::ExactSolver::CONTACT_STIFFNESS)
+    /// times the heaviest vertex's `m/dt²` (as `newton`'s): the iteration
+    /// converges to an implicit step with its contacts, so a stiff cloth
+    /// resting on a collider is not strained by the projection after the
+    /// step, nor its step measured against a fall the collider stops.
+    pub contacts: bool,
 }
 
 /// How projective dynamics solves its global system `S x = b` each
@@ -228,6 +237,7 @@ impl ProjectiveSolver {
             anderson: 0,
             global: GlobalSolve::Auto,
             tolerance: 0.0,
+            contacts: true,
         }
     }
 
@@ -239,6 +249,7 @@ impl ProjectiveSolver {
             anderson: 0,
             global: GlobalSolve::Auto,
             tolerance: 0.0,
+            contacts: true,
         }
     }
 
@@ -250,6 +261,7 @@ impl ProjectiveSolver {
             anderson: window,
             global: GlobalSolve::Auto,
             tolerance: 0.0,
+            contacts: true,
         }
     }
 }
@@ -328,6 +340,8 @@ const PINNED: u32 = u32::MAX;
 #[derive(Default)]
 pub struct ProjectiveWorkspace {
     key: Option<FactorKey>,
+    /// The step's penalty spheres and contacts as penalties.
+    penalties: Vec<PenaltySphere>,
     /// Free index of each vertex, or `PINNED`.
     dof_of: Vec<u32>,
     /// The vertex of each free index.
@@ -459,8 +473,40 @@ impl Method for ProjectiveSolver {
             model,
             params,
             spheres,
-            ..
+            contacts,
         } = input;
+        // The penalty spheres, and the contacts as penalties.
+        let mut penalties = core::mem::take(&mut ws.penalties);
+        penalties.clear();
+        penalties.extend_from_slice(spheres);
+        if self.contacts && !contacts.is_empty() {
+            let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
+            let stiffness = crate::solver::exact::ExactSolver::CONTACT_STIFFNESS
+                * f64::from(heaviest)
+                / (params.dt * params.dt);
+            let stiffness = stiffness.min(f64::from(f32::MAX)) as f32;
+            penalties.extend(
+                contacts
+                    .iter()
+                    .map(|&shape| PenaltySphere::shape(shape, stiffness)),
+            );
+        }
+        let result = self.advance_with(model, params, &penalties, state, ws);
+        ws.penalties = penalties;
+        result
+    }
+}
+
+impl ProjectiveSolver {
+    /// [`advance`](Method::advance) with the step's penalty terms.
+    fn advance_with(
+        &self,
+        model: &ClothModel,
+        params: &StepParams,
+        spheres: &[PenaltySphere],
+        state: &mut ClothState,
+        ws: &mut ProjectiveWorkspace,
+    ) -> Result<StepReport, StepError> {
         let free = model.vertex_count() - model.pins().len();
         ws.prepare(model, params, self.global.cycles(free, self.anderson > 0))?;
         let n = model.vertex_count();
