@@ -126,6 +126,15 @@ use early_stop::EarlyStop;
 /// [`PD_TOLERANCE`].
 pub const PD_ITERATIONS: u32 = 10;
 
+/// The stiffness of a contact in projective dynamics' objective
+/// ([`ProjectiveSolver::contacts`]), in units of the heaviest vertex's
+/// `m/dt²`: a tenth of `newton`'s. A vertex that reaches a collider it was
+/// not near at the step's start feels its penalty as an explicit force, and
+/// at `newton`'s stiffness that kick made soft cloth overshoot: the lab
+/// cloth at rest on the sphere had most of its steps flagged not converged
+/// and stretched more (`docs/measurements.md`).
+pub const PD_CONTACT_STIFFNESS: f64 = 1e2;
+
 /// The preset's early stop ([`ProjectiveSolver::tolerance`]): an estimated
 /// error of 1 % of the step's motion, the per-step error the budget of
 /// [`PD_ITERATIONS`] aims at. A swinging lab cloth stops about halfway
@@ -175,8 +184,7 @@ pub struct ProjectiveSolver {
     pub tolerance: f64,
     /// The solids projected after the step ([`StepInput::contacts`]) as
     /// penalty terms of the objective too, like the penalty spheres, at
-    /// [`ExactSolver::CONTACT_STIFFNESS`](crate::solver::exact::ExactSolver::CONTACT_STIFFNESS)
-    /// times the heaviest vertex's `m/dt²` (as `newton`'s): the iteration
+    /// [`PD_CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`: the iteration
     /// converges to an implicit step with its contacts, so a stiff cloth
     /// resting on a collider is not strained by the projection after the
     /// step, nor its step measured against a fall the collider stops.
@@ -481,9 +489,7 @@ impl Method for ProjectiveSolver {
         penalties.extend_from_slice(spheres);
         if self.contacts && !contacts.is_empty() {
             let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
-            let stiffness = crate::solver::exact::ExactSolver::CONTACT_STIFFNESS
-                * f64::from(heaviest)
-                / (params.dt * params.dt);
+            let stiffness = PD_CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
             let stiffness = stiffness.min(f64::from(f32::MAX)) as f32;
             penalties.extend(
                 contacts
@@ -630,14 +636,23 @@ impl ProjectiveSolver {
             } else {
                 ws.gradient[i]
             };
+            // Along a contact's normal the Hessian is at least `m/h² + c`,
+            // not `m/h²`: the error estimate divides that part of the
+            // gradient by it (else a millimetre's penetration of a stiff
+            // penalty read as metres of error on a cloth at rest on it).
+            let mut error = g * (h * h / mass);
             for sphere in spheres {
                 if let Some(contact) = sphere.contact(x[i]) {
                     g -= contact.force.as_dvec3();
+                    let n = contact.normal.as_dvec3();
+                    let stiffness = f64::from(sphere.stiffness);
+                    error = g * (h * h / mass);
+                    error -= n * (g.dot(n) * (h * h / mass - 1.0 / (mass * inv_h2 + stiffness)));
                 }
             }
             residual += g.length_squared();
             let motion = xi - (x_tilde - h * v[i].as_dvec3());
-            convergence.add_f64(g * (h * h / mass), motion);
+            convergence.add_f64(error, motion);
             // The velocity from the step's motion (after `motion` read the
             // old one).
             v[i] += (x[i] - ws.x_tilde[i]) * inv_h;
