@@ -64,7 +64,8 @@ const USAGE: &str = "usage: headless [OPTIONS]
   --rows R --cols C        the assignment's grid (default 30 x 30)
   --cloths N               copies side by side (default 1)
   --steps S                fixed steps to run (default 300)
-  --iterations K           the method's iterations per step (default: the preset's)
+  --iterations K           the method's iterations per step (default: the preset's;
+                           for stiff, its substeps per step)
   --k STIFFNESS            spring stiffness (default: the scene's, 8000 or E = 10)
   --dt SECONDS             time step (default: the scene's, 0.0333 or 0.005)
   --damping D              velocity multiplier per step (default: 0.99 or 1)
@@ -187,7 +188,18 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
         return Err("--cloths must be at least 1".into());
     }
     if let Some(k) = o.iterations {
-        o.method = o.method.with_iterations(k);
+        o.method = match o.method {
+            // `stiff` has substeps where the others have iterations: K per
+            // step of the scene's time step.
+            AnyMethod::Xpbd(x) => {
+                let dt = o.dt.unwrap_or(match o.scene {
+                    Scene::Lab => LAB_DT,
+                    Scene::Assignment => ASSIGNMENT_DT,
+                });
+                AnyMethod::Xpbd(x.with_substeps(k, dt))
+            }
+            method => method.with_iterations(k),
+        };
     }
     match (&mut o.method, o.rho) {
         (AnyMethod::Implicit(i), Some(rho)) => i.chebyshev = Some(Rho::Fixed(rho)),
@@ -224,6 +236,11 @@ fn parse_global(value: &str) -> Result<GlobalSolve, String> {
     }
 }
 
+/// The lab's time step.
+const LAB_DT: f64 = 0.0333;
+/// The assignment's time step.
+const ASSIGNMENT_DT: f64 = 5e-3;
+
 /// The scene's cloth, parameters and time step.
 fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
     let (builder, params, dt) = match o.scene {
@@ -231,7 +248,7 @@ fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
             let b = ClothBuilder::lab_grid(o.n)
                 .with_pins([0, o.n.saturating_sub(1) as u32])
                 .with_total_mass(o.mass.unwrap_or(441.0));
-            (b, ClothParams::default(), 0.0333)
+            (b, ClothParams::default(), LAB_DT)
         }
         Scene::Assignment => {
             let mut b = ClothBuilder::assignment(o.rows, o.cols);
@@ -242,7 +259,7 @@ fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
                 .with_stiffness(10.0)
                 .with_damping(1.0)
                 .with_particle_radius(0.01);
-            (b, params, 5e-3)
+            (b, params, ASSIGNMENT_DT)
         }
     };
     let mut params = params;
