@@ -29,6 +29,7 @@
 //! | `picking` | `drag`: `DragPlugin` drags entities with the mouse (Bevy's picking). | No |
 //! | `egui` | `ui`: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | No |
 //! | `avian` | `avian`: `AvianCollisionPlugin` (in `ClothPlugins`): cloths collide with every avian3d 0.7 `Collider` by its closest-point query, with its `Friction`; one-way (the cloth does not push rigid bodies). | No |
+//! | `serialize` | serde's `Serialize` and `Deserialize` for [`ClothSnapshot`] (a game's save files; serde is in Bevy's tree already). | No |
 //!
 //! With default features a game builds the simulation and the mesh
 //! write-back only. With `default-features = false` the crate builds only the
@@ -320,6 +321,16 @@
 //! world-space `f32` (`Vec3A`). A pin's velocity is its displacement since
 //! the last step; `stiff` moves the pins along it through its substeps.
 //!
+//! ## Saving
+//! [`Cloth::snapshot`] takes a cloth's dynamic state as a [`ClothSnapshot`]
+//! (positions, velocities, where the last step left the pins, the guard's
+//! halvings): `Reflect`, and with the `serialize` feature serde's. A game
+//! rebuilds the cloth as it built it and calls [`Cloth::restore_snapshot`]:
+//! the cloth continues bitwise as if never saved (tested across a new
+//! `App`, through JSON); another cloth's snapshot (other vertex count or
+//! pins, or a non-finite value) is a typed [`StepError`](solver::StepError)
+//! and the cloth keeps its state.
+//!
 //! ## Materials
 //! A [`ClothMaterial`](model::ClothMaterial) gives a cloth in physical
 //! units: its sheet's stretch stiffness in N/m (the lab's `k = 8000` on its
@@ -424,9 +435,9 @@ pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
     ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation,
-    ClothStateMut, ClothStats, ClothStatus, ClothSystems, ContactResponse, CuboidCollider,
-    DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider,
-    SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+    ClothSnapshot, ClothStateMut, ClothStats, ClothStatus, ClothSystems, ContactResponse,
+    CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
+    SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ClothMethod, ClothWorkspace, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin,
@@ -446,10 +457,10 @@ pub mod prelude {
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
         ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,
-        ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation, ClothStats, ClothStatus,
-        ClothSystems, ContactResponse, CuboidCollider, DivergenceReason, GuardAction,
-        PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin, SphereResponse,
-        Wind, WindPlugin,
+        ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation, ClothSnapshot,
+        ClothStats, ClothStatus, ClothSystems, ContactResponse, CuboidCollider, DivergenceReason,
+        GuardAction, PlaneCollider, ShapeCollisionPlugin, SphereCollider, SphereCollisionPlugin,
+        SphereResponse, Wind, WindPlugin,
     };
     pub use crate::methods::{
         AnyMethod, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin, PRESETS, PbdPlugin,

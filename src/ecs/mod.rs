@@ -59,6 +59,7 @@ mod collision;
 mod components;
 mod core;
 mod mesh_source;
+mod save;
 mod schedule;
 mod wind;
 
@@ -79,6 +80,7 @@ pub use components::{
 };
 pub use core::{ClothCorePlugin, ClothMethods, ClothSimulation};
 pub use mesh_source::ClothFromMesh;
+pub use save::ClothSnapshot;
 pub use schedule::{ClothFollowSystems, ClothSchedule, ClothScheduleSystems, ClothSystems};
 pub use wind::{ClothAerodynamics, Wind, WindPlugin};
 

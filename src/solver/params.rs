@@ -158,6 +158,19 @@ pub enum StepError {
         /// Positions or velocities in the state.
         got: usize,
     },
+    /// A [`ClothSnapshot`](crate::ClothSnapshot) pins other vertices than
+    /// the cloth it is restored into.
+    #[error("the snapshot pins {got} vertices, the cloth {expected} (or other ones)")]
+    PinsMismatch {
+        /// Pins of the cloth.
+        expected: usize,
+        /// Pins of the snapshot.
+        got: usize,
+    },
+    /// A [`ClothSnapshot`](crate::ClothSnapshot) holds a position or
+    /// velocity that is not finite, or a pin that is not a vertex.
+    #[error("the snapshot holds a non-finite position or velocity, or a pin past the vertices")]
+    InvalidSnapshot,
 }
 
 /// What a step reports about its solve.

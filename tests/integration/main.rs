@@ -14,5 +14,6 @@ mod mesh_order;
 mod meshes;
 mod mistakes;
 mod plugin;
+mod save;
 mod scenes;
 mod wind;

@@ -1,0 +1,108 @@
+//! Saving a cloth's dynamic state and loading it into a new app.
+
+use bevy::prelude::*;
+use bevy_cloth::prelude::*;
+
+use crate::common::*;
+
+/// Moves every cloth entity 0.05 along x per frame, in `Update`.
+fn walk(mut cloths: Query<&mut Transform, With<Cloth>>) {
+    for mut transform in &mut cloths {
+        transform.translation.x += 0.05;
+    }
+}
+
+/// An app with the lab's sphere and a walking lab cloth of `preset`.
+fn scene(preset: &str) -> (App, Entity) {
+    let mut app = app_with((ClothPlugins::default(), TransformPlugin));
+    app.add_systems(Update, walk);
+    app.world_mut().spawn((
+        SphereCollider::new(2.7),
+        Transform::from_xyz(0.0, -4.0, 4.0),
+    ));
+    let cloth = spawn_lab(&mut app, ());
+    preset
+        .parse::<AnyMethod>()
+        .unwrap()
+        .insert(&mut app.world_mut().commands().entity(cloth));
+    (app, cloth)
+}
+
+#[test]
+fn a_restored_cloth_continues_bitwise_in_a_new_app() {
+    for preset in ["stiff", "chebyshev", "pd", "newton"] {
+        let (mut first, cloth) = scene(preset);
+        run_steps(&mut first, 40);
+        // The save file: the snapshot as JSON, and the entity's transform.
+        let saved =
+            serde_json::to_string(&first.world().get::<Cloth>(cloth).unwrap().snapshot()).unwrap();
+        let at = *first.world().get::<Transform>(cloth).unwrap();
+        run_steps(&mut first, 40);
+        let expected = positions(&first, cloth);
+
+        // The new app runs its first frame (which runs no fixed step yet)
+        // before the save is loaded into it, as a game loads a save into a
+        // running world; then the entity's transform and the snapshot.
+        let (mut second, restored) = scene(preset);
+        second.update();
+        *second.world_mut().get_mut::<Transform>(restored).unwrap() = at;
+        let snapshot: ClothSnapshot = serde_json::from_str(&saved).unwrap();
+        second
+            .world_mut()
+            .get_mut::<Cloth>(restored)
+            .unwrap()
+            .restore_snapshot(&snapshot)
+            .unwrap();
+        run_steps(&mut second, 40);
+        assert_eq!(positions(&second, restored), expected, "{preset}");
+        assert!(stats(&second, restored).is_running());
+    }
+}
+
+#[test]
+fn another_cloths_snapshot_is_refused_and_the_cloth_keeps_its_state() {
+    let (mut app, cloth) = scene("stiff");
+    run_steps(&mut app, 5);
+    let snapshot = app.world().get::<Cloth>(cloth).unwrap().snapshot();
+    // The same grid with other pins.
+    let other = app
+        .world_mut()
+        .spawn((
+            Cloth::build(ClothBuilder::lab_grid(21).with_pins([0])).unwrap(),
+            XpbdSolver::default(),
+            Transform::default(),
+        ))
+        .id();
+    run_steps(&mut app, 5);
+    let before = app.world().get::<Cloth>(other).unwrap().state().clone();
+    let mut world = app.world_mut();
+    let mut target = world.get_mut::<Cloth>(other).unwrap();
+    assert_eq!(
+        target.restore_snapshot(&snapshot),
+        Err(StepError::PinsMismatch {
+            expected: 1,
+            got: 2
+        })
+    );
+    // A snapshot edited into nonsense.
+    let mut broken = snapshot.clone();
+    broken.pins = vec![0];
+    broken.velocities[3][1] = f32::NAN;
+    assert_eq!(
+        target.restore_snapshot(&broken),
+        Err(StepError::InvalidSnapshot)
+    );
+    broken.positions.pop();
+    assert_eq!(
+        target.restore_snapshot(&broken),
+        Err(StepError::StateMismatch {
+            expected: 441,
+            got: 440
+        })
+    );
+    assert_eq!(*target.state(), before);
+    world = app.world_mut();
+    let _ = &mut world;
+    run_steps(&mut app, 2);
+    assert!(stats(&app, other).is_running());
+}
