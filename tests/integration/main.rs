@@ -9,6 +9,7 @@ mod colliders;
 mod common;
 #[cfg(feature = "picking")]
 mod drag;
+mod fuzz;
 mod materials;
 mod mesh_order;
 mod meshes;
