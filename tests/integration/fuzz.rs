@@ -204,7 +204,7 @@ fn act(app: &mut App, rng: &mut Rng) -> usize {
             // Hand edits: a vertex teleported, or NaN written in.
             if let Some(e) = cloth {
                 let mut cloth = world.get_mut::<Cloth>(e).unwrap();
-                let mut state = cloth.state_mut();
+                let state = cloth.state_mut();
                 let i = rng.below(state.positions.len());
                 state.positions[i].y += rng.pick(&[0.5, 50.0, f32::NAN]);
             }
