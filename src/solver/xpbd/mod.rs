@@ -55,6 +55,10 @@ use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
 
+/// A pin's motion over one step, in cloth sizes, from which it counts as a
+/// teleport (see [`XpbdSolver`]'s step).
+const TELEPORT: f32 = 0.5;
+
 /// Steps a cloth by XPBD with small steps: substeps of one Gauss–Seidel
 /// sweep each at a rate per second, contacts projected in every substep
 /// (see the module docs). Right for stiff cloth at a game's frame rate. As
@@ -236,7 +240,16 @@ impl Method for XpbdSolver {
             pins.iter()
                 .map(|&p| (x[p as usize], v[p as usize] * params.dt as f32)),
         );
-        let moving = ws.pin_paths.iter().any(|&(_, shift)| shift != Vec3A::ZERO);
+        // A pin that jumped by half the cloth's size or more in one step was
+        // teleported, not moved: dragging the cloth along that path would
+        // whip it apart, so it is where it jumped to from the first substep
+        // on (as for the other methods).
+        let teleport = (TELEPORT * model.size()).powi(2);
+        let moving = ws.pin_paths.iter().any(|&(_, shift)| shift != Vec3A::ZERO)
+            && ws
+                .pin_paths
+                .iter()
+                .all(|&(_, shift)| shift.length_squared() < teleport);
         ws.anchors.clear();
         let mut slack = 1.0;
         if tethered {

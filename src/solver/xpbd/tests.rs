@@ -470,3 +470,47 @@ fn tethers_never_bind_on_cloth_their_slack_lets_stretch() {
     assert_eq!(with.positions, without.positions);
     assert!(max_stretch(&model, &with.positions) > 0.1);
 }
+
+#[test]
+fn pins_move_through_the_substeps_unless_they_were_teleported() {
+    // The lab cloth after a second; then its pins move by `jump` along x
+    // in one step (velocity: the jump over the step), or jump there with
+    // no velocity: a move is spread over the substeps, a teleport (half
+    // the cloth's size or more) is not.
+    let model = lab();
+    let params = StepParams::LAB;
+    let settled = run_with_contacts(XpbdSolver::STIFF, &model, &params, &[], 30, |_| {});
+    let after = |jump: f32, with_velocity: bool| {
+        let mut state = settled.clone();
+        for &p in model.pins() {
+            state.positions[p as usize].x += jump;
+            state.velocities[p as usize] = if with_velocity {
+                Vec3A::new(jump / params.dt as f32, 0.0, 0.0)
+            } else {
+                Vec3A::ZERO
+            };
+        }
+        let mut ws = XpbdWorkspace::default();
+        let input = StepInput {
+            model: &model,
+            params: &params,
+            spheres: &[],
+            contacts: &[],
+        };
+        XpbdSolver::STIFF
+            .step_with(input, &mut state, &mut ws)
+            .unwrap();
+        state.positions
+    };
+    // Moved 0.5: the pins reach their place at the last substep.
+    let spread = after(0.5, true);
+    assert_ne!(spread, after(0.5, false));
+    for &p in model.pins() {
+        assert_eq!(
+            spread[p as usize],
+            settled.positions[p as usize] + Vec3A::X * 0.5
+        );
+    }
+    // Teleported 100: as if it had jumped.
+    assert_eq!(after(100.0, true), after(100.0, false));
+}
