@@ -256,6 +256,18 @@ impl Method for XpbdSolver {
             slack = tethers::slack(model, params.gravity, k[SpringKind::Stretch as usize]);
             ws.anchors.extend(ws.pin_paths.iter().map(|&(end, _)| end));
         }
+        // A cloth far outside its tethers' reach (its pins teleported away)
+        // is not pulled back in one substep: the springs drag it, as they
+        // do for the other methods.
+        let reach = TELEPORT * model.size();
+        let tethered = tethered
+            && ws.tethers.ties[..n]
+                .iter()
+                .zip(&x[..])
+                .all(|(&(place, rest), x)| {
+                    !rest.is_finite()
+                        || x.distance(ws.anchors[place as usize]) <= rest * slack + reach
+                });
         let ties = if tethered { &ws.tethers.ties[..n] } else { &[] };
         let plain = contacts.is_empty() && !tethered;
         let fall = h * gravity;
