@@ -94,7 +94,7 @@
 //! **Which preset for what** (from the stability map, the report and the
 //! perf page; the README has the numbers). What decides is `k·dt²/m`, a
 //! spring's stiffness against a vertex's inertia over one step: the lab at
-//! 30 Hz is about 9; a 1 kg cape of [`ClothMaterial::COTTON`] at 60 Hz is
+//! 30 Hz is about 9; a 1 kg cape of [`ClothMaterial::COTTON`](model::ClothMaterial::COTTON) at 60 Hz is
 //! about 500 at 16² and 9 000 at 64².
 //!
 //! | You want | Preset |
