@@ -21,10 +21,14 @@ use crate::solver::guard::GuardMemory;
 /// shortest exact form, as `serde_json` and `ron` do).
 ///
 /// ```
+/// use bevy::prelude::*;
 /// use bevy_cloth::prelude::*;
 ///
 /// let mut cloth = Cloth::build(ClothBuilder::lab()).unwrap();
+/// // Placed (as its entity's insertion does).
+/// cloth.reset_at(&GlobalTransform::IDENTITY);
 /// let saved = cloth.snapshot();
+/// assert_eq!(saved.positions.len(), 441);
 /// assert!(cloth.restore_snapshot(&saved).is_ok());
 /// // Another cloth's snapshot is refused, and the cloth keeps its state.
 /// let mut other = Cloth::build(ClothBuilder::lab_grid(5)).unwrap();
