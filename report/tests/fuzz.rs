@@ -92,6 +92,8 @@ fn five_steps(
         steps: 5,
         events: Vec::new(),
         bounds,
+        start: None,
+        record_every: 0,
     }
 }
 

@@ -78,6 +78,9 @@ pub struct Cloth {
     /// (collision, [`Cloth::state_mut`]).
     #[reflect(ignore)]
     pub(crate) measured: Option<crate::solver::Measured>,
+    /// Set by the step system: the cloth's method ignores the springs'
+    /// stiffness (PBD), so the guard's load bound does not apply to it.
+    pub(crate) stiffness_free: bool,
     /// Each pinned vertex and where the last step left it: a pin's
     /// velocity at the next step is its displacement since, wherever it
     /// was moved (the fixed step's pinning, or the follow after `Update`).

@@ -359,9 +359,12 @@ fn guard_and_measure(
                     // its energy then has no spring term rather than a NaN.
                     params.stiffness = solver::SpringStiffness::uniform(0.0);
                 }
-                guard
-                    .bounds
-                    .check(&cloth.model, &cloth.state, &cloth.last_good, &params)
+                guard.bounds.for_method(!cloth.stiffness_free).check(
+                    &cloth.model,
+                    &cloth.state,
+                    &cloth.last_good,
+                    &params,
+                )
             }
         };
         match result {
@@ -374,7 +377,7 @@ fn guard_and_measure(
                 stats.status = ClothStatus::Diverged(reason);
                 warn!(
                     "cloth {entity} diverged after collision under method '{}' at step {}: \
-                         {reason:?}; restored its last good state and stopped it",
+                     {reason}; restored its last good state and stopped it",
                     stats.method, stats.steps
                 );
                 diverged.borrow_local_mut().push(ClothDiverged {

@@ -103,6 +103,22 @@ pub struct ClothDiverged {
     pub step: u64,
 }
 
+impl std::fmt::Display for ClothDiverged {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "cloth {} under '{}' at step {}: {}; ",
+            self.entity, self.method, self.step, self.reason
+        )?;
+        match self.action {
+            GuardAction::Recovered { substeps } => {
+                write!(f, "the step was retried as {substeps} substeps and held")
+            }
+            GuardAction::Paused => f.write_str("restored its last good state and stopped it"),
+        }
+    }
+}
+
 /// Sent once per cloth when a step of its iterative method ends far from
 /// converged: its [`relative_error`](crate::solver::StepReport::relative_error)
 /// exceeded the guard's
@@ -150,23 +166,25 @@ impl std::fmt::Display for ClothNotConverged {
 impl ClothNotConverged {
     /// What to do about it, from the stability map: more iterations, a
     /// smaller stiffness or time step, or a method that stays right at
-    /// higher stiffness (`pd`, then `pd-anderson`; beyond them, Newton on a
-    /// budget, `newton`, on small cloths).
+    /// higher stiffness (`stiff`, the default preset; `pd`, then
+    /// `pd-anderson`; Newton on a budget, `newton`, on small cloths).
     pub fn remedy(&self) -> &'static str {
         if self.method == "pd" {
-            "raise the iterations, lower the stiffness or the time step, or use 'pd-anderson' \
-             (Anderson-accelerated, for stiff cloth), or 'newton' (Newton on a budget, right \
-             at any stiffness of the stability map, for small cloths)"
+            "raise the iterations, lower the stiffness or the time step, or use 'stiff' (XPBD \
+             with small steps, the default preset for stiff cloth and cloth of real mass), \
+             'pd-anderson' (Anderson-accelerated) or 'newton' (Newton on a budget, for small \
+             cloths)"
         } else if self.method == "newton" || self.method == "exact" {
             "raise Newton's iteration cap, or lower the stiffness or the time step ('exact' \
              iterates up to 100 times, to a relative gradient of 1e-9)"
         } else if self.method == "pd-anderson" {
-            "raise the iterations, lower the stiffness or the time step, or use 'newton' \
-             (Newton with direct solves on a budget, right at any stiffness of the stability \
-             map, for small cloths)"
+            "raise the iterations, lower the stiffness or the time step, or use 'stiff' (XPBD \
+             with small steps, the default preset for stiff cloth and cloth of real mass) or \
+             'newton' (Newton with direct solves on a budget, for small cloths)"
         } else {
-            "raise the iterations, lower the stiffness or the time step, or use the 'pd' method \
-             (projective dynamics), which stays right about a decade stiffer"
+            "raise the iterations, lower the stiffness or the time step, or use 'stiff' (XPBD \
+             with small steps, the default preset for stiff cloth and cloth of real mass) or \
+             the 'pd' method (projective dynamics), which stays right about a decade stiffer"
         }
     }
 }

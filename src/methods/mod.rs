@@ -104,6 +104,11 @@ macro_rules! method_table {
                 match self { $( Self::$variant(m) => m.validate(), )* }
             }
 
+            /// Whether the springs' stiffness acts ([`Method::uses_stiffness`]).
+            pub fn uses_stiffness(&self) -> bool {
+                match self { $( Self::$variant(m) => m.uses_stiffness(), )* }
+            }
+
             /// Advances `state` by one step of this method, with its
             /// scratch in `ws`.
             pub fn step(

@@ -271,8 +271,9 @@ fn step_cloths<M: ClothMethod>(
         let method = &*method;
         let start = Instant::now();
         cloth.measured = None;
+        cloth.stiffness_free = !method.uses_stiffness();
         let result = guarded_step(
-            &guard.bounds,
+            &guard.bounds.for_method(!cloth.stiffness_free),
             guard.policy,
             &mut cloth.guard_memory,
             model,
@@ -349,8 +350,8 @@ fn step_cloths<M: ClothMethod>(
             }
             Err(GuardError::Diverged { reason, halvings }) => {
                 warn!(
-                    "cloth {entity} stopped: the '{}' step diverged at step {} ({reason:?}, \
-                         {halvings} halvings tried); restored its last good state",
+                    "cloth {entity} stopped under '{}' at step {}: {reason} ({halvings} halvings \
+                     tried); restored its last good state",
                     method.name(),
                     stats.steps
                 );

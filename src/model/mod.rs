@@ -30,6 +30,8 @@ pub struct ClothModel {
     pinned: Vec<bool>,
     pins: Vec<u32>,
     size: f32,
+    /// The mass of the free (unpinned) vertices.
+    free_mass: f32,
     /// For each vertex of the source mesh, the cloth vertex it became.
     pub(crate) welded_from: Option<Arc<Vec<u32>>>,
 }
@@ -54,14 +56,23 @@ impl ClothModel {
         } else {
             0.0
         };
+        let free_mass = free_mass(&masses, &pinned);
         Self {
             topology,
             masses,
             pinned,
             pins,
             size,
+            free_mass,
             welded_from: None,
         }
+    }
+
+    /// The total mass of the vertices that are not pinned: the weight the
+    /// pins carry, over `|g|`.
+    #[inline]
+    pub fn free_mass(&self) -> f32 {
+        self.free_mass
     }
 
     /// For a cloth built from a mesh ([`ClothBuilder::from_mesh`]): for each
@@ -131,6 +142,7 @@ impl ClothModel {
             self.pinned[p as usize] = true;
         }
         self.pins = pins;
+        self.free_mass = free_mass(&self.masses, &self.pinned);
         Ok(())
     }
 
@@ -154,6 +166,7 @@ impl ClothModel {
             return Err(ClothBuildError::InvalidMass { vertex, mass });
         }
         self.masses = masses;
+        self.free_mass = free_mass(&self.masses, &self.pinned);
         Ok(())
     }
 
@@ -162,6 +175,16 @@ impl ClothModel {
     pub fn vertices_where(&self, select: impl Fn(Vec3) -> bool) -> Vec<u32> {
         vertices_where(self.topology.rest_positions(), select)
     }
+}
+
+fn free_mass(masses: &[f32], pinned: &[bool]) -> f32 {
+    let sum: f64 = masses
+        .iter()
+        .zip(pinned)
+        .filter(|(_, p)| !**p)
+        .map(|(&m, _)| f64::from(m))
+        .sum();
+    sum as f32
 }
 
 /// The indices of `positions` that satisfy `select`.

@@ -227,6 +227,8 @@ pub struct ClothTopology {
     /// Per spring kind, the stiffness per spring of one N/m of sheet
     /// modulus (see [`ClothMaterial`](super::ClothMaterial)).
     sheet: [f32; 3],
+    /// Per spring kind, the mean rest length (0 for a kind it lacks).
+    mean_rest: [f32; 3],
     /// The springs as offset families, when they form a stencil (a grid
     /// numbered row by row): what the implicit iteration's
     /// structure-of-arrays kernels run on.
@@ -301,6 +303,17 @@ impl ClothTopology {
             })
             .sum();
         let sheet = super::material::sheet_factors(area as f32, &springs);
+        let mut rest_sums = [0.0f64; 3];
+        for s in &springs {
+            rest_sums[s.kind as usize] += f64::from(s.rest_length);
+        }
+        let mean_rest = [0, 1, 2].map(|k| {
+            if kind_counts[k] > 0 {
+                (rest_sums[k] / kind_counts[k] as f64) as f32
+            } else {
+                0.0
+            }
+        });
         Ok(Self {
             rest_positions,
             triangles,
@@ -308,6 +321,7 @@ impl ClothTopology {
             adjacency,
             kind_counts,
             sheet,
+            mean_rest,
             stencil,
         })
     }
@@ -355,6 +369,13 @@ impl ClothTopology {
     /// The springs as offset families, if they form a stencil.
     pub(crate) fn stencil(&self) -> Option<&Stencil> {
         self.stencil.as_ref()
+    }
+
+    /// The mean rest length of each spring kind, in [`SpringKind::ALL`]
+    /// order (0 for a kind the cloth lacks).
+    #[inline]
+    pub fn mean_rest_lengths(&self) -> [f32; 3] {
+        self.mean_rest
     }
 
     /// How many springs of each kind, in [`SpringKind::ALL`] order.

@@ -4,7 +4,8 @@
 //! A step *fails* when the method returns a solve error, when a position or
 //! velocity becomes NaN or infinite, or when the cloth leaves the bounds of a
 //! [`GuardBounds`]: a spring stretched beyond `max_stretch` times its rest
-//! length, or a total energy beyond `max_energy`. The bounds catch a blow-up
+//! length or beyond what the cloth's weight could stretch it
+//! ([`GuardBounds::stretch_bound`]), or a total energy beyond `max_energy`. The bounds catch a blow-up
 //! while the state is still finite, so the state the guard keeps is never
 //! absurd.
 //!
@@ -37,6 +38,24 @@ pub enum DivergenceReason {
     Energy,
 }
 
+impl std::fmt::Display for DivergenceReason {
+    /// What a player would see, in a few words.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::NonFinite => "blew up: a position or velocity became NaN or infinite",
+            Self::SolveFailed => {
+                "its solve failed: a matrix that is not positive definite, or a failed \
+                 factorisation"
+            }
+            Self::Stretch => {
+                "it is stretching apart: a spring passed the guard's stretch bound (far past what \
+                 its weight and stiffness allow)"
+            }
+            Self::Energy => "it is gaining energy: its energy passed the guard's bound",
+        })
+    }
+}
+
 /// What a state must satisfy after a step, besides being finite.
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 pub struct GuardBounds {
@@ -47,8 +66,24 @@ pub struct GuardBounds {
     /// ends beyond the bound passes if it reduced the largest stretch (a pin
     /// teleported far away leaves springs stretched before any step runs).
     /// A scene whose physics stretches springs further than this (huge loads
-    /// on soft springs) needs a larger bound.
+    /// on soft springs) needs a larger bound, and no
+    /// [`load_factor`](Self::load_factor) if its load is not its weight (the
+    /// smaller of the two bounds applies).
     pub max_stretch: Option<f32>,
+    /// The bound a player would judge by: a cloth may stretch at most
+    /// `0.5 + load_factor · ε_w`, where `ε_w = M·|g| / (k·L)` is the stretch
+    /// its whole free weight `M·|g|` would give one stretch spring of
+    /// stiffness `k` and mean rest length `L` (see
+    /// [`GuardBounds::stretch_bound`]). Its weight is spread over several
+    /// springs, so cloth that a method keeps right stretches a fraction of
+    /// `ε_w`; a cloth stretched half its length beyond ten times that is
+    /// coming apart, whatever the method says. Default `10`: it binds for
+    /// cloth of real mass on stiff springs (a 1.5 kg cape on the lab's
+    /// `k = 8000`: about 64 %), while [`max_stretch`](Self::max_stretch)
+    /// binds for the lab's heavy soft cloth. `None` checks only
+    /// `max_stretch`. Like it, the bound passes a step that reduced the
+    /// largest stretch.
+    pub load_factor: Option<f32>,
     /// Largest allowed total energy (see [`energy`](super::energy)); `None`
     /// (the default) checks none. It depends on the scene, so only its
     /// author can set it.
@@ -59,6 +94,7 @@ impl Default for GuardBounds {
     fn default() -> Self {
         Self {
             max_stretch: Some(10.0),
+            load_factor: Some(10.0),
             max_energy: None,
         }
     }
@@ -68,8 +104,24 @@ impl GuardBounds {
     /// No bounds: only non-finite values and solve failures are caught.
     pub const FINITE_ONLY: Self = Self {
         max_stretch: None,
+        load_factor: None,
         max_energy: None,
     };
+
+    /// These bounds for a method that does (`uses_stiffness`) or does not
+    /// use the springs' stiffness: without it, no load bound (it is
+    /// derived from the stiffness).
+    #[must_use]
+    pub fn for_method(self, uses_stiffness: bool) -> Self {
+        if uses_stiffness {
+            self
+        } else {
+            Self {
+                load_factor: None,
+                ..self
+            }
+        }
+    }
 
     /// Checks the bounds themselves (positive, not NaN).
     pub fn validate(&self) -> Result<(), ParamError> {
@@ -78,12 +130,38 @@ impl GuardBounds {
         {
             return Err(ParamError::Bound(f64::from(s)));
         }
+        if let Some(f) = self.load_factor
+            && (f.is_nan() || f < 0.0)
+        {
+            return Err(ParamError::Bound(f64::from(f)));
+        }
         if let Some(e) = self.max_energy
             && e.is_nan()
         {
             return Err(ParamError::Bound(e));
         }
         Ok(())
+    }
+
+    /// The largest stretch this cloth may reach under `params`: the smaller
+    /// of [`max_stretch`](Self::max_stretch) and the load bound
+    /// `0.5 + load_factor · M·|g|/(k·L)` (see
+    /// [`load_factor`](Self::load_factor); `M` the mass of the free
+    /// vertices, `k` the stretch springs' stiffness, `L` their mean rest
+    /// length). `None` if neither applies (a cloth without stretch springs,
+    /// or of zero stiffness, has no load bound).
+    pub fn stretch_bound(&self, model: &ClothModel, params: &StepParams) -> Option<f32> {
+        let load = self.load_factor.and_then(|factor| {
+            let k = params.stiffness.as_array()[0];
+            let l = model.topology().mean_rest_lengths()[0];
+            let weight = model.free_mass() * params.gravity.length();
+            let strain = weight / (k * l);
+            (k > 0.0 && l > 0.0 && strain.is_finite()).then_some(0.5 + factor * strain)
+        });
+        match (self.max_stretch, load) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// Checks `state` after a step from `before`: finite, and within the
@@ -101,7 +179,7 @@ impl GuardBounds {
         params: &StepParams,
     ) -> Result<Measured, DivergenceReason> {
         let measured = measure(model, state, params).ok_or(DivergenceReason::NonFinite)?;
-        if let Some(bound) = self.max_stretch {
+        if let Some(bound) = self.stretch_bound(model, params) {
             let stretch = measured.max_stretch;
             // Fails if it grew while beyond the bound (`before` passed the
             // guard, so it is finite).
@@ -434,7 +512,12 @@ mod tests {
         assert_eq!(calls, 1);
         let bad = GuardBounds {
             max_stretch: Some(f32::NAN),
-            max_energy: None,
+            ..GuardBounds::default()
+        };
+        assert!(bad.validate().is_err());
+        let bad = GuardBounds {
+            load_factor: Some(-1.0),
+            ..GuardBounds::default()
         };
         assert!(bad.validate().is_err());
     }
@@ -445,8 +528,8 @@ mod tests {
         let params = StepParams::LAB;
         let e = energy(&model, &state, &params);
         let tight = GuardBounds {
-            max_stretch: None,
             max_energy: Some(e - 1.0),
+            ..GuardBounds::FINITE_ONLY
         };
         assert_eq!(
             tight.check(&model, &state, &state, &params),

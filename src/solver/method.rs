@@ -77,6 +77,13 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
     /// Checks the settings.
     fn validate(&self) -> Result<(), ParamError>;
 
+    /// Whether the springs' stiffness acts in this method (true by
+    /// default). PBD restores rest lengths instead, so the guard's load
+    /// bound, which is derived from the stiffness, does not apply to it.
+    fn uses_stiffness(&self) -> bool {
+        true
+    }
+
     /// Checks the parameters this method uses: all of them by default
     /// ([`StepParams::validate`]); a method that ignores some (PBD has no
     /// stiffness) checks only the others, so a value it never reads cannot

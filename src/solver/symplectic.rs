@@ -9,6 +9,13 @@
 //! (`stencil`), unless `StepParams::stencil` is off. The step is explicit in the forces, so it is stable only
 //! for `h` below about `2/ω_max` (`ω_max²` the largest eigenvalue of
 //! `M⁻¹K`); past that it diverges, and the divergence guard catches it.
+//!
+//! A penalty collider is an undamped spring `c` on each vertex in contact,
+//! which this step integrates stably only for `c·h²/m <` [`EXPLICIT_CONTACT_LIMIT`]
+//! (`ω h < 2`). A stiffer one would
+//! launch the cloth that rests on it, so it is projected after the step
+//! instead (as PBD does): the vertex is put back on its surface and its
+//! velocity into it removed.
 
 use bevy::math::Vec3A;
 
@@ -16,6 +23,7 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::{Method, ParamError, StepError, StepInput, StepReport};
+use crate::collision::{PenaltySphere, Shape, project_shapes};
 use crate::model::ClothState;
 use crate::solver::engine::stencil::StencilWorkspace;
 use crate::solver::springs::{spring_terms, stiffness_coeffs};
@@ -53,6 +61,23 @@ impl Method for SymplecticSolver {
             ..
         } = input;
         let h = params.dt as f32;
+        // Penalty colliders stiffer than the step can integrate for the
+        // lightest free vertex are projected after it (module docs).
+        let lightest = model
+            .masses()
+            .iter()
+            .zip(model.pinned())
+            .filter(|(_, p)| !**p)
+            .map(|(&m, _)| m)
+            .fold(f32::INFINITY, f32::min);
+        let explicit = |s: &PenaltySphere| s.stiffness * h * h < EXPLICIT_CONTACT_LIMIT * lightest;
+        ws.projected.clear();
+        ws.projected.extend(
+            spheres
+                .iter()
+                .filter(|s| !explicit(s))
+                .map(PenaltySphere::as_shape),
+        );
         let gravity = Vec3A::from(params.gravity);
         let adjacency = model.topology().adjacency();
         let pinned = model.pinned();
@@ -90,7 +115,7 @@ impl Method for SymplecticSolver {
                     f += ws.terms[e as usize];
                 }
             }
-            for sphere in spheres {
+            for sphere in spheres.iter().filter(|s| explicit(s)) {
                 if let Some(contact) = sphere.contact(x) {
                     f += contact.force;
                 }
@@ -99,11 +124,16 @@ impl Method for SymplecticSolver {
             state.velocities[i] = v;
             state.positions[i] = x + h * v;
         }
+        let contacts = if ws.projected.is_empty() {
+            0
+        } else {
+            project_shapes(model, state, &ws.projected, 0.0, h) as u32
+        };
         Ok(StepReport {
             iterations: 0,
             residual: None,
             relative_error: None,
-            contacts: 0,
+            contacts,
         })
     }
 }
@@ -117,4 +147,11 @@ pub struct SymplecticWorkspace {
     sums: Vec<Vec3A>,
     /// The structure-of-arrays state of the stencil kernels.
     stencil: StencilWorkspace,
+    /// The penalty colliders too stiff for the step, as projected shapes.
+    projected: Vec<Shape>,
 }
+
+/// The largest `c·h²/m` at which symplectic Euler integrates a penalty
+/// contact stably (`ω h < 2` for an undamped spring); stiffer contacts are
+/// projected (see the [module docs](self)).
+pub const EXPLICIT_CONTACT_LIMIT: f32 = 4.0;

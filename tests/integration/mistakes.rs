@@ -137,7 +137,8 @@ fn an_unconverged_stiff_cloth_is_flagged_once_and_a_converged_one_is_not() {
     assert_eq!(seen[0].entity, stiff);
     assert_eq!(seen[0].method, "chebyshev");
     assert_eq!(seen[0].iterations, 32);
-    assert!(seen[0].to_string().contains("'pd'"), "{}", seen[0]);
+    let text = seen[0].to_string();
+    assert!(text.contains("'stiff'") && text.contains("'pd'"), "{text}");
     let s = stats(&app, soft);
     assert!(s.converged, "{:?}", s.relative_error);
     assert_eq!(s.unconverged_steps, 0);
@@ -313,4 +314,110 @@ fn a_state_of_another_size_is_refused_and_the_cloth_keeps_its_own() {
     assert!(s.is_running(), "{:?}", s.status);
     let c = app.world().get::<Cloth>(cloth).unwrap();
     assert!(c.positions().iter().all(|p| p.is_finite()));
+}
+
+#[derive(Resource, Default)]
+struct Diverged(Vec<ClothDiverged>);
+
+fn collect_diverged(mut reader: MessageReader<ClothDiverged>, mut seen: ResMut<Diverged>) {
+    seen.0.extend(reader.read().copied());
+}
+
+/// Runs a 16² cape of 1.5 kg at 60 Hz, pinned along its top edge, under
+/// Chebyshev with 8 iterations and the lab's ρ (too few for its
+/// `k·dt²/m` of about 380: its steps grow without bound) for 840 steps, with
+/// the guard's `bounds`; returns the worst stretch of a kept state, the
+/// stats, the messages and the load bound.
+fn wrecked_cape(bounds: GuardBounds) -> (f32, ClothStats, Vec<ClothDiverged>, f32) {
+    let n = 16;
+    let model = ClothBuilder::grid(
+        n,
+        n,
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(-1.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 2.0),
+    )
+    .with_masses(vec![1.5 / (n * n) as f32; n * n])
+    .with_pins(0..n as u32)
+    .build()
+    .unwrap();
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+        .init_resource::<Diverged>()
+        .add_systems(ClothSchedule, collect_diverged.in_set(ClothSystems::Last));
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth::new(model.clone()),
+            ImplicitSolver::chebyshev(8, 0.995),
+            ClothGuard {
+                bounds,
+                ..default()
+            },
+            Transform::default(),
+        ))
+        .id();
+    let params = ClothParams::default().step_params(1.0 / 60.0);
+    let bound = GuardBounds::default()
+        .stretch_bound(&model, &params)
+        .unwrap();
+    let mut worst = 0.0f32;
+    for _ in 0..840 {
+        run_steps(&mut app, 1);
+        worst = worst.max(stats(&app, cloth).max_stretch);
+    }
+    let seen = app.world().resource::<Diverged>().0.clone();
+    (worst, stats(&app, cloth), seen, bound)
+}
+
+#[test]
+fn a_cape_coming_apart_is_called_a_wreck_not_running() {
+    // Issue R: a light cape under a method too weak for it kept states
+    // stretched up to the 10× bound and stayed `Running`. The load bound
+    // (half its length beyond ten times the stretch its weight would give
+    // one spring: about 61 % here) catches it early: the guard retries it in
+    // substeps or stops it, says what is happening, and keeps no state past
+    // the bound.
+    let (worst, s, seen, bound) = wrecked_cape(GuardBounds::default());
+    assert!(
+        bound < 1.0,
+        "the load bound binds for a light cape: {bound}"
+    );
+    assert!(
+        seen.iter().any(|d| d.reason == DivergenceReason::Stretch),
+        "{seen:?} {s:?}"
+    );
+    let text = seen[0].to_string();
+    assert!(text.contains("stretching apart"), "{text}");
+    assert!(worst <= bound, "kept a state stretched {worst} > {bound}");
+    assert!(
+        s.retried_steps > 0 || s.status == ClothStatus::Diverged(DivergenceReason::Stretch),
+        "{s:?}"
+    );
+    // With the 10× bound alone, the same cape keeps states far past it.
+    let (worst, _, _, _) = wrecked_cape(GuardBounds {
+        load_factor: None,
+        ..default()
+    });
+    assert!(worst > bound, "{worst}");
+}
+
+#[test]
+fn the_load_bound_leaves_the_lab_and_cotton_capes_to_the_absolute_one() {
+    // The lab's cloth (441 kg on k = 8000) may sag far: its load bound is
+    // above 10, so the 10× bound binds, as before. A cotton cape on its
+    // material's springs gets a bound well above what it stretches.
+    let lab = ClothBuilder::lab().build().unwrap();
+    let bounds = GuardBounds::default();
+    let lab_bound = bounds.stretch_bound(&lab, &StepParams::LAB).unwrap();
+    assert!((9.5..=10.0).contains(&lab_bound), "{lab_bound}");
+    assert_eq!(
+        GuardBounds::FINITE_ONLY.stretch_bound(&lab, &StepParams::LAB),
+        None
+    );
+    let no_gravity = StepParams {
+        gravity: Vec3::ZERO,
+        ..StepParams::LAB
+    };
+    assert_eq!(bounds.stretch_bound(&lab, &no_gravity), Some(0.5));
 }

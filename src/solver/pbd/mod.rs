@@ -81,6 +81,10 @@ impl Method for PbdSolver {
         params.validate_without_stiffness()
     }
 
+    fn uses_stiffness(&self) -> bool {
+        false
+    }
+
     /// Advances `state` by one PBD step (see the module docs). Stiffness is not
     /// used: strain limiting restores rest lengths directly.
     fn advance(
