@@ -27,6 +27,7 @@
 
 pub mod accuracy;
 pub mod chart;
+pub mod long_run;
 pub mod perf;
 pub mod scenarios;
 pub mod stability;
