@@ -421,6 +421,15 @@ fn method_ui(
     }
 }
 
+/// The checkbox for an implicit method's contacts in its solve.
+fn contacts_ui(ui: &mut egui::Ui, contacts: &mut bool) {
+    ui.checkbox(contacts, "colliders inside the solve")
+        .on_hover_text(
+            "the colliders projected after the step also act as penalty terms of the step's \
+             objective, so stiff cloth in contact is not strained by the projection",
+        );
+}
+
 /// The controls of a method's settings.
 fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
     match method {
@@ -453,6 +462,7 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                 early_stop_ui(ui, &mut p.tolerance);
             }
             global_solve_ui(ui, &mut p.global);
+            contacts_ui(ui, &mut p.contacts);
         }
         AnyMethod::Pbd(p) => iterations_ui(ui, &mut p.iterations, "iterations"),
         AnyMethod::Symplectic(_) => {}
@@ -484,6 +494,7 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                 egui::Slider::new(&mut x.max_iterations, 1..=200).text("Newton iterations (max)"),
             );
             ui.checkbox(&mut x.projected_only, "projected Hessian only");
+            contacts_ui(ui, &mut x.contacts);
         }
         AnyMethod::Linear(l) => {
             if let LinearSolver::Cg(cg) = &mut l.solver {
