@@ -4,7 +4,8 @@
 //! ```text
 //! cargo run --release --example headless -- [--scene lab|assignment] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
-//!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--rho 0.995] [--sphere] \
+//!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--material cotton|E,RHO] \
+//!     [--rho 0.995] [--sphere] \
 //!     [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] [--dump positions.csv] \
 //!     [--compute-threads N]
 //! ```
@@ -70,6 +71,9 @@ const USAGE: &str = "usage: headless [OPTIONS]
   --dt SECONDS             time step (default: the scene's, 0.0333 or 0.005)
   --damping D              velocity multiplier per step (default: 0.99 or 1)
   --mass TOTAL             the cloth's total mass (default: 441 or 0.1)
+  --material cotton|E,RHO  a ClothMaterial instead of --k and --mass: cotton
+                           (12 kN/m, 0.25 kg/m²), or a stretch modulus E in
+                           N/m and an areal density RHO in kg/m² (default: none)
   --rho RHO                Chebyshev's fixed spectral radius (default: the preset's)
   --sphere                 add the scene's sphere (default: none)
   --penalty C              the assignment sphere's penalty stiffness (default 10)
@@ -102,6 +106,7 @@ struct Options {
     dt: Option<f64>,
     damping: Option<f32>,
     mass: Option<f32>,
+    material: Option<ClothMaterial>,
     rho: Option<f32>,
     sphere: bool,
     penalty: f32,
@@ -128,6 +133,7 @@ impl Default for Options {
             dt: None,
             damping: None,
             mass: None,
+            material: None,
             rho: None,
             sphere: false,
             penalty: 10.0,
@@ -166,6 +172,12 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             Long("dt") | Long("h") => o.dt = Some(value(&mut parser, "--dt")?),
             Long("damping") => o.damping = Some(value(&mut parser, "--damping")?),
             Long("mass") => o.mass = Some(value(&mut parser, "--mass")?),
+            Long("material") => {
+                o.material = Some(parse_material(&value::<String>(
+                    &mut parser,
+                    "--material",
+                )?)?)
+            }
             Long("rho") => o.rho = Some(value(&mut parser, "--rho")?),
             Long("sphere") => o.sphere = true,
             Long("penalty") => o.penalty = value(&mut parser, "--penalty")?,
@@ -234,6 +246,25 @@ fn parse_global(value: &str) -> Result<GlobalSolve, String> {
             .map(|cycles| GlobalSolve::Multigrid { cycles })
             .ok_or_else(|| format!("--global: expected auto, direct, mg or mgN, got '{value}'")),
     }
+}
+
+/// `cotton`, or `E,RHO`: a stretch modulus in N/m and an areal density in
+/// kg/m² (the rest of cotton's moduli kept).
+fn parse_material(value: &str) -> Result<ClothMaterial, String> {
+    if value == "cotton" {
+        return Ok(ClothMaterial::COTTON);
+    }
+    let bad = || format!("--material: expected cotton or E,RHO (N/m, kg/m²), got '{value}'");
+    let (e, rho) = value.split_once(',').ok_or_else(bad)?;
+    let (e, rho): (f32, f32) = (
+        e.trim().parse().map_err(|_| bad())?,
+        rho.trim().parse().map_err(|_| bad())?,
+    );
+    let material = ClothMaterial::COTTON.with_stretch(e).with_density(rho);
+    material
+        .validate()
+        .map_err(|e| format!("--material: {e}"))?;
+    Ok(material)
 }
 
 /// The lab's time step.
@@ -331,6 +362,9 @@ fn run(o: &Options) -> Result<(), String> {
             params,
             Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
         ));
+        if let Some(material) = o.material {
+            cloth.insert(material);
+        }
         o.method.insert_now(&mut cloth);
         ids.push(cloth.id());
     }
