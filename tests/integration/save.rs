@@ -106,3 +106,57 @@ fn another_cloths_snapshot_is_refused_and_the_cloth_keeps_its_state() {
     run_steps(&mut app, 2);
     assert!(stats(&app, other).is_running());
 }
+
+/// An app with the lab's sphere and a still lab cloth of `preset`.
+fn still_scene(preset: &str) -> (App, Entity) {
+    let mut app = app();
+    app.world_mut().spawn((
+        SphereCollider::new(2.7),
+        Transform::from_xyz(0.0, -4.0, 4.0),
+    ));
+    let cloth = spawn_lab(&mut app, ());
+    preset
+        .parse::<AnyMethod>()
+        .unwrap()
+        .insert(&mut app.world_mut().commands().entity(cloth));
+    (app, cloth)
+}
+
+#[test]
+fn a_method_switch_continues_from_the_same_positions_and_velocities() {
+    // Issue R: a cloth switched from one method to another continues as a
+    // fresh cloth of the new method started from the state the old one
+    // left (its positions, velocities, pins and the guard's memory): no
+    // jump from anything the old method carried.
+    for (from, to) in [
+        ("pbd", "pd"),
+        ("chebyshev", "stiff"),
+        ("stiff", "newton"),
+        ("pd", "pbd"),
+        ("newton", "chebyshev"),
+    ] {
+        let (mut switched, cloth) = still_scene(from);
+        run_steps(&mut switched, 40);
+        let state = switched.world().get::<Cloth>(cloth).unwrap().snapshot();
+        to.parse::<AnyMethod>()
+            .unwrap()
+            .insert(&mut switched.world_mut().commands().entity(cloth));
+        run_steps(&mut switched, 10);
+
+        let (mut fresh, other) = still_scene(to);
+        fresh.update();
+        fresh
+            .world_mut()
+            .get_mut::<Cloth>(other)
+            .unwrap()
+            .restore_snapshot(&state)
+            .unwrap();
+        run_steps(&mut fresh, 10);
+        assert_eq!(
+            positions(&switched, cloth),
+            positions(&fresh, other),
+            "{from} → {to}"
+        );
+        assert_eq!(stats(&switched, cloth).method, to);
+    }
+}
