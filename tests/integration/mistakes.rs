@@ -421,3 +421,41 @@ fn the_load_bound_leaves_the_lab_and_cotton_capes_to_the_absolute_one() {
     };
     assert_eq!(bounds.stretch_bound(&lab, &no_gravity), Some(0.5));
 }
+
+#[test]
+fn a_damping_per_second_settles_alike_at_any_rate_and_a_bad_one_is_refused() {
+    // Issue Q: damping per step settles a cloth at a different rate at 30
+    // and 60 Hz; per second it does not.
+    let params = ClothParams::default().with_damping_per_second(0.5);
+    let per_second = |dt: f64| params.step_params(dt).damping.powf((1.0 / dt) as f32);
+    for dt in [1.0 / 30.0, 1.0 / 60.0, 1.0 / 240.0] {
+        assert!(
+            (per_second(dt) - 0.5).abs() < 1e-4,
+            "{dt}: {}",
+            per_second(dt)
+        );
+    }
+    let lab = ClothParams::default();
+    assert_eq!(
+        lab.step_params(1.0 / 60.0).damping,
+        0.99,
+        "the lab's stays per step"
+    );
+    for bad in [f32::NAN, 1.5, -0.1] {
+        let mut app = app();
+        let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));
+        app.world_mut()
+            .entity_mut(cloth)
+            .insert(ClothParams::default().with_damping_per_second(bad));
+        run_steps(&mut app, 2);
+        let s = stats(&app, cloth);
+        assert!(
+            matches!(
+                s.status,
+                ClothStatus::Invalid(StepError::Params(ParamError::Damping(_)))
+            ),
+            "{bad}: {:?}",
+            s.status
+        );
+    }
+}
