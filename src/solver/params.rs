@@ -202,12 +202,12 @@ pub struct StepReport {
 /// implicit-Euler solution of more than 25 % of the step's motion.
 ///
 /// Chosen from the stability map (`docs/report/stability.md`, section
-/// "Convergence"): over the lab sweep, no correct run of Jacobi or Chebyshev
-/// has a step above 0.18, and every wrong one but one (which the map names)
-/// has steps above 0.25. Within that gap it is set high, because a cloth
-/// resting on a projection sphere reads about 0.2 at the lab's settings
-/// with Chebyshev and projective dynamics alike: the solve ignores the
-/// sphere, which then undoes the unconverged fall.
+/// "Convergence"), where it separates the right runs of the iterative
+/// methods from the wrong ones but for the few the map lists by name; it is
+/// set high in that gap, because a cloth resting on a projection sphere
+/// reads just below it at the lab's settings with Chebyshev and projective
+/// dynamics alike: the solve ignores the sphere, which then undoes the
+/// unconverged fall.
 pub const CONVERGENCE_TOLERANCE: f32 = 0.25;
 
 /// Checks that `state` has one position and velocity per vertex of `model`.

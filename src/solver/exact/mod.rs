@@ -74,7 +74,7 @@ pub struct ExactSolver {
     /// step converges to an implicit step *with* its contacts, and the
     /// projection after it has little left to move: alone, that projection
     /// moves vertices the stiff springs cannot follow within the step, and
-    /// strains the cloth (the stability map's sphere section).
+    /// strains the cloth (the stability map's scenes on the sphere).
     pub contacts: bool,
 }
 
