@@ -255,19 +255,13 @@ fn scene_section(
         writeln!(md).ok();
     }
     writeln!(md, "\n<details><summary>Per method ({slug})</summary>\n").ok();
-    let picks = labels
-        .iter()
-        .enumerate()
-        .map(|(m, l)| (l.clone(), Some(m)))
-        .chain([("exact, against the physical reference".to_owned(), None)]);
-    for (label, m) in picks {
+    for (label, m) in rows(labels) {
         writeln!(md, "\n#### {label} ({slug})\n").ok();
         header(md, config);
         for (i, k) in config.stiffnesses.iter().enumerate() {
             write!(md, "| {k:e} |").ok();
             for c in &cells[i] {
-                let judged = m.map_or(&c.exact_vs_physical, |m| &c.judged[m]);
-                write!(md, " {} |", judged.text()).ok();
+                write!(md, " {} |", judged(c, m).text()).ok();
             }
             writeln!(md).ok();
         }
@@ -318,6 +312,22 @@ fn scene_text(scene: Scene) -> &'static str {
     }
 }
 
+/// The rows of a scene's tables: each method (by its index in
+/// [`Cell::judged`]), then the exact method against the physical reference
+/// (`None`).
+fn rows(labels: &[String]) -> impl Iterator<Item = (String, Option<usize>)> + '_ {
+    labels
+        .iter()
+        .enumerate()
+        .map(|(m, l)| (l.clone(), Some(m)))
+        .chain([("exact, against the physical reference".to_owned(), None)])
+}
+
+/// Row `m` of [`rows`] in `cell`.
+fn judged(cell: &Cell, m: Option<usize>) -> &Judged {
+    m.map_or(&cell.exact_vs_physical, |m| &cell.judged[m])
+}
+
 /// The summary: per scene and method, how many cells are right.
 fn summary(md: &mut String, labels: &[String], scenes: &[(Scene, Vec<Vec<Cell>>)]) {
     writeln!(md, "## Summary\n\nCells right (✓) of each scene's grid:\n").ok();
@@ -327,23 +337,14 @@ fn summary(md: &mut String, labels: &[String], scenes: &[(Scene, Vec<Vec<Cell>>)
     }
     writeln!(md, "\n|---|{}", "---|".repeat(scenes.len())).ok();
     let count = |cells: &Vec<Vec<Cell>>, m: Option<usize>| {
-        let all: Vec<&Judged> = cells
-            .iter()
-            .flatten()
-            .map(|c| m.map_or(&c.exact_vs_physical, |m| &c.judged[m]))
-            .collect();
+        let all: Vec<&Judged> = cells.iter().flatten().map(|c| judged(c, m)).collect();
         let right = all
             .iter()
             .filter(|j| j.outcome.verdict == Verdict::Correct)
             .count();
         format!("{right}/{}", all.len())
     };
-    let picks = labels
-        .iter()
-        .enumerate()
-        .map(|(m, l)| (l.clone(), Some(m)))
-        .chain([("exact, against the physical reference".to_owned(), None)]);
-    for (label, m) in picks {
+    for (label, m) in rows(labels) {
         write!(md, "| {label} |").ok();
         for (_, cells) in scenes {
             write!(md, " {} |", count(cells, m)).ok();

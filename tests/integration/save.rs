@@ -12,10 +12,8 @@ fn walk(mut cloths: Query<&mut Transform, With<Cloth>>) {
     }
 }
 
-/// An app with the lab's sphere and a walking lab cloth of `preset`.
-fn scene(preset: &str) -> (App, Entity) {
-    let mut app = app_with((ClothPlugins::default(), TransformPlugin));
-    app.add_systems(Update, walk);
+/// `app` with the lab's sphere and a lab cloth of `preset`.
+fn lab_on_sphere(mut app: App, preset: &str) -> (App, Entity) {
     app.world_mut().spawn((
         SphereCollider::new(2.7),
         Transform::from_xyz(0.0, -4.0, 4.0),
@@ -26,6 +24,13 @@ fn scene(preset: &str) -> (App, Entity) {
         .unwrap()
         .insert(&mut app.world_mut().commands().entity(cloth));
     (app, cloth)
+}
+
+/// An app with the lab's sphere and a walking lab cloth of `preset`.
+fn scene(preset: &str) -> (App, Entity) {
+    let mut app = app_with((ClothPlugins::default(), TransformPlugin));
+    app.add_systems(Update, walk);
+    lab_on_sphere(app, preset)
 }
 
 #[test]
@@ -109,17 +114,7 @@ fn another_cloths_snapshot_is_refused_and_the_cloth_keeps_its_state() {
 
 /// An app with the lab's sphere and a still lab cloth of `preset`.
 fn still_scene(preset: &str) -> (App, Entity) {
-    let mut app = app();
-    app.world_mut().spawn((
-        SphereCollider::new(2.7),
-        Transform::from_xyz(0.0, -4.0, 4.0),
-    ));
-    let cloth = spawn_lab(&mut app, ());
-    preset
-        .parse::<AnyMethod>()
-        .unwrap()
-        .insert(&mut app.world_mut().commands().entity(cloth));
-    (app, cloth)
+    lab_on_sphere(app(), preset)
 }
 
 #[test]
