@@ -497,14 +497,3 @@ pub fn cell(scene: Scene, k: f32, dt: f64, length: Length, draped: Option<&Cloth
         physical_floor: physical.floor,
     }
 }
-
-/// `k·dt²/m` of the lab cloth (1 kg per vertex) at `k` and `dt`: how stiff a
-/// step is, whatever the units.
-pub fn stiffness_number(k: f32, dt: f64) -> f64 {
-    f64::from(k) * dt * dt
-}
-
-/// The methods' labels in [`Cell::judged`]'s order.
-pub fn labels() -> Vec<String> {
-    map_methods().iter().map(crate::variant).collect()
-}

@@ -79,7 +79,7 @@ pub struct GuardBounds {
     /// `ε_w`; a cloth stretched half its length beyond ten times that is
     /// coming apart, whatever the method says. Default `10`: it binds for
     /// cloth of real mass on stiff springs (a 1.5 kg cape on the lab's
-    /// `k = 8000`: about 64 %), while [`max_stretch`](Self::max_stretch)
+    /// `k = 8000`: 61 %), while [`max_stretch`](Self::max_stretch)
     /// binds for the lab's heavy soft cloth. `None` checks only
     /// `max_stretch`. Like it, the bound passes a step that reduced the
     /// largest stretch.

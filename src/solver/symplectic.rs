@@ -62,14 +62,19 @@ impl Method for SymplecticSolver {
         } = input;
         let h = params.dt as f32;
         // Penalty colliders stiffer than the step can integrate for the
-        // lightest free vertex are projected after it (module docs).
-        let lightest = model
-            .masses()
-            .iter()
-            .zip(model.pinned())
-            .filter(|(_, p)| !**p)
-            .map(|(&m, _)| m)
-            .fold(f32::INFINITY, f32::min);
+        // lightest free vertex are projected after it (module docs); a step
+        // without them does not look for it.
+        let lightest = if spheres.is_empty() {
+            f32::INFINITY
+        } else {
+            model
+                .masses()
+                .iter()
+                .zip(model.pinned())
+                .filter(|(_, p)| !**p)
+                .map(|(&m, _)| m)
+                .fold(f32::INFINITY, f32::min)
+        };
         let explicit = |s: &PenaltySphere| s.stiffness * h * h < EXPLICIT_CONTACT_LIMIT * lightest;
         ws.projected.clear();
         ws.projected.extend(
