@@ -473,6 +473,16 @@ fn settings_ui(ui: &mut egui::Ui, method: &mut AnyMethod) {
                     .logarithmic(true),
             )
             .on_hover_text("each substep is one sweep over the springs; 960: 32 per 30 Hz step");
+            ui.add(
+                egui::Slider::new(&mut x.max_refinement, 1..=64)
+                    .text("most substeps ×, near a collider")
+                    .logarithmic(true),
+            )
+            .on_hover_text(
+                "a step near a collider multiplies its substeps by the power of two at or above \
+                 k·h²/m, up to this: stiff cloth then keeps its length on impact and does not \
+                 creep off a frictionless collider; 1 never does",
+            );
             ui.checkbox(&mut x.tethers, "tethers to the pins")
                 .on_hover_text(
                     "each vertex no further from its nearest pin than at rest, plus the stretch \

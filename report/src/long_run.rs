@@ -55,6 +55,12 @@ pub struct Length {
     pub max_steps: usize,
 }
 
+/// How long the map's draped start settles: after ten seconds a stiff
+/// cloth still slid off the frictionless sphere by 0.3 m over the next ten
+/// (and a soft one still swung); after sixty it moves less than a
+/// millimetre.
+pub const SETTLE_SECONDS: f64 = 60.0;
+
 impl Length {
     /// The map's: ten seconds, at most 1000 steps (so 0.1 s at a step of
     /// 1e-4 s and 1 s at 1e-3 s).
@@ -127,11 +133,11 @@ fn lab_sphere() -> Shape {
 
 /// Where the draped scene starts for stiffness `k`: the lab cloth after
 /// falling onto the sphere with the exact method at 60 Hz and damping 0.9
-/// per step for `length`'s seconds (at rest to the eye after ten), its
-/// velocities zeroed.
-pub fn draped_start(k: f32, length: Length) -> ClothState {
+/// per step for `seconds` (the map's: [`SETTLE_SECONDS`]), its velocities
+/// zeroed.
+pub fn draped_start(k: f32, seconds: f64) -> ClothState {
     let dt = 1.0 / 60.0;
-    let steps = (length.seconds / dt).round().max(1.0) as usize;
+    let steps = (seconds / dt).round().max(1.0) as usize;
     let mut s = Scenario::grid(21, k, dt).with_steps(steps);
     s.params.damping = 0.9;
     s.contacts.push(lab_sphere());
@@ -153,6 +159,11 @@ pub fn scenario(
         .named(format!("{} k={k:e} dt={dt}", scene.title()))
         .with_steps(length.steps(dt))
         .recorded();
+    // The lab's 441 kg on springs of 10–100 N/m stretch past ten times
+    // their length within ten seconds, the exact method's too: the guard
+    // judges them by their load alone (its `load_factor`), as a game's
+    // does, so that those cells are judged rather than all caught.
+    s.bounds.max_stretch = None;
     if scene != Scene::Hanging {
         s.contacts.push(lab_sphere());
     }

@@ -37,6 +37,9 @@ pub struct StabilityConfig {
     pub time_steps: Vec<f64>,
     /// How long each long run is.
     pub length: Length,
+    /// How long the draped scene's start settles (see
+    /// [`draped_start`]).
+    pub settle_seconds: f64,
     /// Grid sides of the resolution sweep (iterative methods, lab k and dt).
     pub resolutions: Vec<usize>,
     /// Side of the large extreme case; `None` leaves the extreme cases out.
@@ -58,6 +61,7 @@ impl StabilityConfig {
             stiffnesses: vec![1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8],
             time_steps: vec![1e-4, 1e-3, 1e-2, 1.0 / 60.0, 0.0333, 0.1],
             length: Length::MAP,
+            settle_seconds: long::SETTLE_SECONDS,
             resolutions: vec![11, 21, 51, 101],
             large: Some(301),
             limit_steps: vec![300, 1000, 3000],
@@ -75,6 +79,7 @@ impl StabilityConfig {
                 seconds: 0.3,
                 max_steps: 20,
             },
+            settle_seconds: 0.3,
             resolutions: vec![6],
             large: None,
             limit_steps: vec![50],
@@ -388,7 +393,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     let draped: Vec<ClothState> = config
         .stiffnesses
         .par_iter()
-        .map(|&k| draped_start(k, config.length))
+        .map(|&k| draped_start(k, config.settle_seconds))
         .collect();
     let jobs: Vec<(Scene, usize, usize)> = Scene::ALL
         .iter()

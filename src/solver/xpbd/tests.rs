@@ -517,3 +517,115 @@ fn pins_move_through_the_substeps_unless_they_were_teleported() {
     let loose = XpbdSolver::STIFF.with_tethers(false);
     assert_eq!(after(100.0, false), after_with(loose, 100.0, false));
 }
+
+#[test]
+fn refinement_grows_with_stiffness_over_mass_in_powers_of_two_up_to_its_cap() {
+    let m = XpbdSolver::STIFF;
+    // 32 substeps of 1/30 s: h = 1/960 s, κ = k/(960² m).
+    let at = |k: f32, mass: f32| m.refinement(32, 1.0 / 30.0, k, mass);
+    assert_eq!(at(8000.0, 1.0), 1, "the lab's κ ≈ 0.009");
+    assert_eq!(at(1e5, 1.0), 1);
+    assert_eq!(at(1e6, 1.0), 2, "κ ≈ 1.09");
+    assert_eq!(at(4e6, 1.0), 8, "κ ≈ 4.3");
+    assert_eq!(at(1e7, 1.0), 16, "κ ≈ 10.9");
+    assert_eq!(at(1e8, 1.0), 16, "capped");
+    assert_eq!(at(1e6, 0.1), 16, "lighter vertices, larger κ");
+    assert_eq!(at(1e6, 0.0), 16, "a massless cloth takes the cap");
+    assert_eq!(at(f32::NAN, 1.0), 1);
+    assert_eq!(
+        m.with_max_refinement(1)
+            .refinement(32, 1.0 / 30.0, 1e8, 1.0),
+        1
+    );
+    assert_eq!(
+        m.with_max_refinement(0).validate(),
+        Err(ParamError::Iterations)
+    );
+}
+
+/// The lab's sphere, in front of the lab cloth's pinned edge.
+fn lab_sphere(y: f32) -> Shape {
+    Shape::Capsule(Capsule {
+        a: Vec3A::new(0.0, y, 4.0),
+        b: Vec3A::new(0.0, y, 4.0),
+        radius: 2.7,
+        friction: 0.0,
+    })
+}
+
+#[test]
+fn only_steps_near_a_collider_are_refined() {
+    let model = lab();
+    let substeps = |k: f32, contacts: &[Shape]| {
+        let params = stiff(k, 1.0 / 30.0);
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = XpbdWorkspace::default();
+        let input = StepInput {
+            model: &model,
+            params: &params,
+            spheres: &[],
+            contacts,
+        };
+        XpbdSolver::STIFF
+            .step_with(input, &mut state, &mut ws)
+            .unwrap()
+            .iterations
+    };
+    // The cloth starts level at y = 0, the sphere's top 5 cm below it.
+    let near = lab_sphere(-2.75);
+    assert_eq!(substeps(1e7, &[near]), 32 * 16);
+    assert_eq!(substeps(1e6, &[near]), 32 * 2);
+    assert_eq!(substeps(8000.0, &[near]), 32, "the lab pays nothing");
+    assert_eq!(
+        substeps(1e7, &[lab_sphere(-4.0)]),
+        32,
+        "the lab's sphere is 1.3 below"
+    );
+    assert_eq!(substeps(1e7, &[]), 32, "nor does a cloth hanging free");
+    assert_eq!(
+        substeps(1e7, &[lab_sphere(-100.0)]),
+        32,
+        "nor one far above a collider"
+    );
+    let far_plane = Shape::Plane(Plane {
+        point: Vec3A::new(0.0, -100.0, 0.0),
+        normal: Vec3A::Y,
+        friction: 0.0,
+    });
+    assert_eq!(substeps(1e7, &[far_plane]), 32);
+    // The cloth starts level at y = 0: a ground just below it is near.
+    let near_plane = Shape::Plane(Plane {
+        point: Vec3A::new(0.0, -0.05, 0.0),
+        normal: Vec3A::Y,
+        friction: 0.0,
+    });
+    assert_eq!(substeps(1e7, &[near_plane]), 32 * 16);
+}
+
+#[test]
+fn stiff_cloth_falling_onto_a_sphere_is_not_strained_on_impact() {
+    // k = 1e7 on the lab's 1 kg vertices at 30 Hz: κ ≈ 11 at 960 substeps
+    // per second. Unrefined, the springs next to the contacts stretch on
+    // impact far beyond the same cloth's stretch hanging free.
+    let model = lab();
+    let params = stiff(1e7, 1.0 / 30.0);
+    let sphere = lab_sphere(-4.0);
+    let worst = |method: XpbdSolver, contacts: &[Shape]| {
+        let mut worst = 0.0f32;
+        run_with_contacts(method, &model, &params, contacts, 90, |s| {
+            worst = worst.max(max_stretch(&model, &s.positions));
+        });
+        worst
+    };
+    let hanging = worst(XpbdSolver::STIFF, &[]);
+    let refined = worst(XpbdSolver::STIFF, &[sphere]);
+    let unrefined = worst(XpbdSolver::STIFF.with_max_refinement(1), &[sphere]);
+    assert!(
+        refined < hanging + 0.01,
+        "refined {refined}, hanging {hanging}"
+    );
+    assert!(
+        unrefined > hanging + 0.01,
+        "unrefined {unrefined}, hanging {hanging}: the test no longer sees the strain"
+    );
+}
