@@ -28,7 +28,7 @@
 //! | `render` | `render`: `ClothRenderPlugin` writes cloth positions and normals into their meshes once per frame. Needs Bevy's `bevy_mesh` and `bevy_camera` only (no renderer or window: the game brings its own). | Yes |
 //! | `picking` | `drag`: `DragPlugin` drags entities with the mouse (Bevy's picking). | No |
 //! | `egui` | `ui`: `ClothInspectorPlugin`, a panel to switch methods and tune cloths live, with pause, step and reset (`bevy_egui`). | No |
-//! | `avian` | `avian`: `AvianCollisionPlugin` (in `ClothPlugins`): cloths collide with every avian3d 0.7 `Collider` by its closest-point query, with its `Friction`; one-way (the cloth does not push rigid bodies). | No |
+//! | `avian` | `avian`: `AvianCollisionPlugin` (in `ClothPlugins`): cloths collide with every avian3d 0.7 `Collider` by its closest-point query, with its `Friction`, after the step; balls, capsules, cuboids and half-spaces also inside it, as the crate's own colliders; one-way (the cloth does not push rigid bodies). | No |
 //! | `serialize` | serde's `Serialize` and `Deserialize` for [`ClothSnapshot`] (a game's save files; serde is in Bevy's tree already). | No |
 //!
 //! With default features a game builds the simulation and the mesh
@@ -296,7 +296,8 @@
 //!                                Cholesky and line search to ‖∇Φ‖ ≤ 1e-9‖∇Φ(x̃)‖; v = Δx/dt
 //!                                (newton: the same to 1e-5, at most 16 iterations)
 //!             (penalty spheres, planes, capsules, boxes act inside the step: forces, and stiffness in A; in pd,
-//!              projective terms with their stiffness on the matrix's diagonal)
+//!              projective terms with their stiffness on the matrix's diagonal; projection ones too, and
+//!              avian's primitives: projected in stiff's substeps, penalty terms in pd's and newton's objectives)
 //!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)

@@ -45,6 +45,13 @@ pub struct ClothColliders {
     /// response: penalty forces inside the step, as [`PenaltySphere`]s with
     /// a [`PenaltySurface::Shape`](crate::collision::PenaltySurface::Shape).
     pub penalty_shapes: Vec<PenaltySphere>,
+    /// The game's avian colliders whose shape is one of the crate's (balls,
+    /// capsules, cuboids and half-spaces), gathered by
+    /// `AvianCollisionPlugin` (cargo feature `avian`) with avian's friction:
+    /// in the step like [`shapes`](Self::shapes) (inside `stiff`'s
+    /// substeps, terms of `pd`'s and `newton`'s objectives), and projected
+    /// after it with every other avian collider. Empty without that plugin.
+    pub avian: Vec<Shape>,
 }
 
 /// How a plane, capsule or box acts on the cloth: the same two responses
@@ -404,7 +411,7 @@ fn non_negative(values: &[f32]) -> bool {
 /// Gathers the shape colliders into [`ClothColliders::shapes`]. A collider
 /// with a negative or non-finite size, friction or thickness, or a
 /// non-finite transform, is skipped with a warning (once per entity).
-fn gather_shapes(
+pub(crate) fn gather_shapes(
     helper: TransformHelper,
     colliders: Query<ShapeColliders, AnyShape>,
     mut gathered: ResMut<ClothColliders>,

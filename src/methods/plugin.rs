@@ -263,6 +263,7 @@ fn step_cloths<M: ClothMethod>(
                     })
                 })
                 .chain(colliders.shapes.iter().copied())
+                .chain(colliders.avian.iter().copied())
                 .map(|s| s.grown(particle_radius)),
         );
         cloth.pin_velocities(dt as f32);

@@ -2,6 +2,7 @@
 //! the scene, no extra component.
 
 use avian3d::prelude::{Collider, Friction, Sensor};
+use bevy::math::Vec3A;
 use bevy::prelude::*;
 use bevy_cloth::prelude::*;
 
@@ -66,4 +67,41 @@ fn a_cloth_falls_onto_an_avian_cuboid_and_rests_on_it() {
         .map(|&i| (after[i] - x[i]).length())
         .fold(0.0, f32::max);
     assert!(moved < 0.05, "the part on the box moved by {moved}");
+}
+
+#[test]
+fn stiff_cloth_keeps_its_length_over_an_avian_box_with_the_contacts_in_the_implicit_objectives() {
+    // Issue M, item 2, with avian's colliders: the lab cloth at k = 1e6
+    // swings over the edge of an avian box (12×2×4, top at y = −4) and
+    // rests on it; pd, pd-anderson and newton take the box as a term of
+    // their objective, and stiff projects it inside its substeps, so it
+    // keeps about its length and stays outside.
+    for preset in ["pd", "pd-anderson", "newton", "stiff"] {
+        let mut app = app();
+        app.world_mut().spawn((
+            Collider::cuboid(12.0, 2.0, 4.0),
+            Transform::from_xyz(0.0, -5.0, 4.0),
+        ));
+        let cloth = app
+            .world_mut()
+            .spawn((
+                Cloth::build(ClothBuilder::lab()).unwrap(),
+                ClothParams::default().with_stiffness(1e6),
+                Transform::default(),
+            ))
+            .id();
+        let method: AnyMethod = preset.parse().unwrap();
+        method.insert(&mut app.world_mut().commands().entity(cloth));
+        run_steps(&mut app, 150);
+        let s = stats(&app, cloth);
+        assert!(s.is_running() && s.contacts > 0, "{preset}: {s:?}");
+        assert!(s.max_stretch < 0.02, "{preset} stretched {}", s.max_stretch);
+        for p in positions(&app, cloth) {
+            let d = (p - Vec3A::new(0.0, -5.0, 4.0)).abs() - Vec3A::new(6.0, 1.0, 2.0);
+            assert!(
+                d.max_element() > -1e-3,
+                "{preset}: a vertex inside the box: {p}"
+            );
+        }
+    }
 }
