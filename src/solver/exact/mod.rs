@@ -10,7 +10,14 @@
 //! `x = x̃`. The contact terms are the penalty spheres and, with
 //! [`ExactSolver::contacts`] (the default), the solids the plugin projects
 //! after the step ([`StepInput::contacts`]) at a stiffness `c` of
-//! [`ExactSolver::CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`. Each Newton iteration assembles the Hessian
+//! [`ExactSolver::CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`.
+//! A contact with friction `μ` adds lagged Coulomb friction (Li et al.
+//! 2020, IPC): for a vertex the last step ended in contact with normal
+//! force `λ` and normal `n`, the term `μλ·f₀(‖(I − nnᵀ)(x − x₀)‖)`, where
+//! `f₀` is the tangential slip `y` beyond `ε` and a smooth quadratic start
+//! below it (static friction: a held vertex creeps at most `ε/dt`, a
+//! thousandth of the cloth's size per second); its Hessian is taken as
+//! `μλ f₁(y)/y·(I − nnᵀ)`, positive semi-definite. Each Newton iteration assembles the Hessian
 //! `H = M/dt² + Σ k[nnᵀ + (1 − L/l)(I − nnᵀ)]` on the sparse pattern of
 //! [`linear`](super::linear) (it is `(M − h²K)/h²`), factorises it by sparse
 //! Cholesky (symbolic analysis once per pattern), solves `H d = −∇Φ`, and
@@ -35,7 +42,7 @@
 //! iterations; on stiff cloth (k = 1e7–1e8 at long steps, where projective
 //! dynamics locks) it spends its budget and stays with the exact run.
 
-use bevy::math::{DVec3, Vec3A};
+use bevy::math::{DMat3, DVec3, Vec3A};
 
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
@@ -43,7 +50,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
 use super::params::check_budget;
 use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
-use crate::collision::PenaltySphere;
+use crate::collision::{PenaltySphere, PenaltySurface};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
 
@@ -209,6 +216,25 @@ impl Method for ExactSolver {
             ws.x[p as usize] = state.positions[p as usize].as_dvec3();
             ws.x_tilde[p as usize] = ws.x[p as usize];
         }
+        // Friction from the contacts the last step ended in (lagged), where
+        // the same colliders are still there.
+        ws.friction.clear();
+        let eps = STICK_SPEED * f64::from(model.size()) * dt;
+        if ws.ended_in.1 == spheres.len() && eps > 0.0 {
+            ws.friction.extend(
+                ws.ended_in
+                    .0
+                    .iter()
+                    .filter(|&&(i, ..)| (i as usize) < n && !pinned[i as usize])
+                    .map(|&(i, _, bound, normal)| Friction {
+                        vertex: i as usize,
+                        start: state.positions[i as usize].as_dvec3(),
+                        normal,
+                        bound,
+                    }),
+            );
+        }
+        let friction = (&ws.friction[..], eps);
         let mut report = ExactReport::default();
         let g0 = gradient(
             model,
@@ -216,7 +242,7 @@ impl Method for ExactSolver {
             &ws.x,
             &ws.x_tilde,
             params,
-            spheres,
+            (spheres, friction),
             &mut ws.gradient,
         );
         let mut g_norm = g0;
@@ -245,6 +271,9 @@ impl Method for ExactSolver {
                     ..LinearImplicitSolver::default()
                 };
                 system.assemble_at(model, &ws.x, &ws.zeros, params, &hessian, spheres);
+                for f in friction.0 {
+                    system.add_to_diagonal(f.vertex, &(f.hessian(ws.x[f.vertex], eps) * h2));
+                }
                 for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
                     *d = -h2 * g;
                 }
@@ -276,7 +305,7 @@ impl Method for ExactSolver {
                 break;
             }
             // Backtracking (Armijo) line search along the Newton direction.
-            let phi = objective(model, &ws.x, &ws.x_tilde, params, spheres);
+            let phi = objective(model, &ws.x, &ws.x_tilde, params, (spheres, friction));
             let slope: f64 = ws
                 .gradient
                 .iter()
@@ -297,7 +326,7 @@ impl Method for ExactSolver {
                     }
                 }
                 if !line_search
-                    || objective(model, &ws.trial, &ws.x_tilde, params, spheres)
+                    || objective(model, &ws.trial, &ws.x_tilde, params, (spheres, friction))
                         <= phi + 1e-4 * alpha * slope
                 {
                     accepted = true;
@@ -319,10 +348,27 @@ impl Method for ExactSolver {
                 &ws.x,
                 &ws.x_tilde,
                 params,
-                spheres,
+                (spheres, friction),
                 &mut ws.gradient,
             );
             last_ratio = Some(if before > 0.0 { g_norm / before } else { 0.0 });
+        }
+        // The contacts this step ends in, for the next step's friction.
+        ws.ended_in.0.clear();
+        ws.ended_in.1 = spheres.len();
+        for (k, sphere) in spheres.iter().enumerate() {
+            let PenaltySurface::Shape(shape) = sphere.surface else {
+                continue;
+            };
+            let mu = f64::from(shape.friction());
+            if mu > 0.0 {
+                for (i, &x) in ws.x.iter().enumerate() {
+                    if let Some(c) = (!pinned[i]).then(|| sphere.contact_f64(x)).flatten() {
+                        let bound = mu * f64::from(sphere.stiffness) * c.depth;
+                        ws.ended_in.0.push((i as u32, k as u32, bound, c.normal));
+                    }
+                }
+            }
         }
         report.relative_gradient = if g0 > 0.0 { g_norm / g0 } else { 0.0 };
         report.converged = g_norm <= threshold || report.at_round_off;
@@ -382,6 +428,77 @@ pub struct ExactWorkspace {
     last: ExactReport,
     /// The step's penalty spheres and contacts as penalties.
     penalties: Vec<PenaltySphere>,
+    /// Friction of this step: from the last step's contacts (see
+    /// [`Friction`]).
+    friction: Vec<Friction>,
+    /// The contacts the last step ended in, with friction: `(vertex,
+    /// penalty, μ·λ, normal)`; and the penalty count they index.
+    ended_in: (Vec<(u32, u32, f64, DVec3)>, usize),
+}
+
+/// The speed below which friction holds a vertex, per metre of cloth size
+/// (IPC's `ε_v`, Li et al. 2020): a cloth in static contact creeps at most
+/// a thousandth of its size per second.
+const STICK_SPEED: f64 = 1e-3;
+
+/// One vertex's lagged Coulomb friction against a collider, a term of the
+/// step's objective (Li et al. 2020, "Incremental Potential Contact",
+/// section 5): with `u = (I − nnᵀ)(x − x₀)` its tangential motion over the
+/// step, `μλ·f₀(‖u‖)` where `f₀` is `‖u‖` beyond `ε` and a smooth quadratic
+/// start below it (static friction). The normal force `λ` and the normal
+/// `n` are the previous step's at its end: lagged, so the term is convex.
+#[derive(Clone, Copy, Debug)]
+struct Friction {
+    vertex: usize,
+    start: DVec3,
+    normal: DVec3,
+    /// `μλ`.
+    bound: f64,
+}
+
+impl Friction {
+    /// `(u, ‖u‖)` at `x`.
+    fn slip(&self, x: DVec3) -> (DVec3, f64) {
+        let d = x - self.start;
+        let u = d - self.normal * self.normal.dot(d);
+        (u, u.length())
+    }
+
+    /// `μλ·f₀(‖u‖)`.
+    fn energy(&self, x: DVec3, eps: f64) -> f64 {
+        let (_, y) = self.slip(x);
+        self.bound
+            * if y < eps {
+                -y * y * y / (3.0 * eps * eps) + y * y / eps + eps / 3.0
+            } else {
+                y
+            }
+    }
+
+    /// `μλ·f₁(y)/y`: the gradient is this times `u`, and the Hessian is
+    /// taken as this times `I − nnᵀ` (positive semi-definite).
+    fn stiffness(&self, y: f64, eps: f64) -> f64 {
+        self.bound
+            * if y < eps {
+                (2.0 - y / eps) / eps
+            } else {
+                1.0 / y
+            }
+    }
+
+    /// The gradient at `x`.
+    fn gradient(&self, x: DVec3, eps: f64) -> DVec3 {
+        let (u, y) = self.slip(x);
+        u * self.stiffness(y, eps)
+    }
+
+    /// The Hessian at `x` (see [`stiffness`](Self::stiffness)).
+    fn hessian(&self, x: DVec3, eps: f64) -> DMat3 {
+        let (_, y) = self.slip(x);
+        let n = self.normal;
+        let nn = DMat3::from_cols(n * n.x, n * n.y, n * n.z);
+        (DMat3::IDENTITY - nn) * self.stiffness(y, eps)
+    }
 }
 
 impl core::fmt::Debug for ExactWorkspace {
@@ -451,11 +568,11 @@ fn objective(
     x: &[DVec3],
     x_tilde: &[DVec3],
     params: &StepParams,
-    spheres: &[PenaltySphere],
+    (spheres, (friction, eps)): (&[PenaltySphere], (&[Friction], f64)),
 ) -> f64 {
     let inv_dt2 = 1.0 / (params.dt * params.dt);
     let g = params.gravity.as_dvec3();
-    let mut e = 0.0;
+    let mut e: f64 = friction.iter().map(|f| f.energy(x[f.vertex], eps)).sum();
     for (i, &m) in model.masses().iter().enumerate() {
         if model.pinned()[i] {
             continue;
@@ -483,7 +600,7 @@ fn gradient(
     x: &[DVec3],
     x_tilde: &[DVec3],
     params: &StepParams,
-    spheres: &[PenaltySphere],
+    (spheres, (friction, eps)): (&[PenaltySphere], (&[Friction], f64)),
     out: &mut [f64],
 ) -> f64 {
     out.fill(0.0);
@@ -505,6 +622,9 @@ fn gradient(
             }
         }
         add(i, v, out);
+    }
+    for f in friction {
+        add(f.vertex, f.gradient(x[f.vertex], eps), out);
     }
     for s in model.topology().springs() {
         let (a, b) = (s.a as usize, s.b as usize);

@@ -179,6 +179,16 @@ impl LinearSystem {
         (self.dof_of[i] != FIXED).then(|| 3 * self.dof_of[i] as usize)
     }
 
+    /// Adds `block` to vertex `i`'s diagonal block of `A` (nothing for a
+    /// fixed particle).
+    pub(crate) fn add_to_diagonal(&mut self, i: usize, block: &DMat3) {
+        let d = self.dof_of[i];
+        if d != FIXED {
+            let slot = self.diag[d as usize];
+            self.add_block(slot, block, 1.0);
+        }
+    }
+
     /// `A` as a sparse matrix view.
     pub fn matrix(&self) -> SparseColMatRef<'_, usize, f64> {
         let n = self.dimension();
