@@ -438,7 +438,7 @@ pub use ecs::{
     ClothNotConverged, ClothParams, ClothSchedule, ClothScheduleSystems, ClothSimulation,
     ClothSnapshot, ClothStateMut, ClothStats, ClothStatus, ClothSystems, ContactResponse,
     CuboidCollider, DivergenceReason, GuardAction, PlaneCollider, ShapeCollisionPlugin,
-    SphereCollider, SphereCollisionPlugin, SphereResponse, Wind, WindPlugin,
+    SphereCollider, SphereCollisionPlugin, SphereResponse, Unconverged, Wind, WindPlugin,
 };
 pub use methods::{
     AnyMethod, ClothMethod, ClothWorkspace, ExactPlugin, ImplicitPlugin, LinearImplicitPlugin,

@@ -63,7 +63,7 @@ pub struct Cloth {
     pub(crate) convergence_reported: bool,
     /// Set by a step that did not converge; sent as a message in `SyncOut`.
     #[reflect(ignore)]
-    pub(crate) not_converged: Option<f32>,
+    pub(crate) not_converged: Option<(f32, super::Unconverged)>,
     /// The pins the cloth was built with, which follow its own entity.
     #[reflect(ignore)]
     pub(crate) own_pins: Vec<u32>,

@@ -323,7 +323,7 @@ fn guard_and_measure(
         if !cloth.claimed {
             return;
         }
-        if let Some(relative_error) = cloth.not_converged.take() {
+        if let Some((relative_error, behaviour)) = cloth.not_converged.take() {
             let message = ClothNotConverged {
                 entity,
                 method: stats.method,
@@ -331,6 +331,7 @@ fn guard_and_measure(
                 relative_error,
                 tolerance: guard.convergence_tolerance,
                 step: stats.steps,
+                behaviour,
             };
             unconverged.borrow_local_mut().push(message);
         }

@@ -144,6 +144,59 @@ pub struct ClothNotConverged {
     pub tolerance: f32,
     /// Completed steps when it happened.
     pub step: u64,
+    /// What the step looked like.
+    pub behaviour: Unconverged,
+}
+
+/// What an unconverged step looked like (see [`ClothNotConverged`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Reflect)]
+pub enum Unconverged {
+    /// It moved in the right direction but not far enough: its estimated
+    /// distance from implicit Euler's step is at most its motion.
+    Lagging,
+    /// It moved less than the distance still left to implicit Euler's step
+    /// (relative error above 1): a stiff cloth that lags like this hangs
+    /// "locked" in the air, or creeps where it should fall.
+    Locked,
+    /// Its free vertices' velocities turned against the step before's (their
+    /// dot products sum below zero): it overshoots back and forth about
+    /// implicit Euler's step.
+    Oscillating,
+}
+
+impl Unconverged {
+    /// From a step's relative error and the free vertices' velocities
+    /// before and after it.
+    pub fn of(relative_error: f32, before: &[Vec3A], after: &[Vec3A], pinned: &[bool]) -> Self {
+        let turned: f64 = before
+            .iter()
+            .zip(after)
+            .zip(pinned)
+            .filter(|(_, p)| !**p)
+            .map(|((a, b), _)| f64::from(a.dot(*b)))
+            .sum();
+        if turned < 0.0 {
+            Self::Oscillating
+        } else if relative_error > 1.0 {
+            Self::Locked
+        } else {
+            Self::Lagging
+        }
+    }
+
+    /// One clause that says it.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Lagging => "it lags behind that step",
+            Self::Locked => {
+                "it moved less than the distance left to that step: stiff cloth that does this \
+                 hangs locked in the air or creeps where it should fall"
+            }
+            Self::Oscillating => {
+                "its velocities turned against the step before's: it oscillates about that step"
+            }
+        }
+    }
 }
 
 impl std::fmt::Display for ClothNotConverged {
@@ -151,13 +204,15 @@ impl std::fmt::Display for ClothNotConverged {
         write!(
             f,
             "cloth {} did not converge under '{}' with {} iterations at step {}: its estimated \
-             distance from implicit Euler's step is {:.0} % of its motion (tolerance {:.0} %); {}",
+             distance from implicit Euler's step is {:.0} % of its motion (tolerance {:.0} %), \
+             and {}; {}",
             self.entity,
             self.method,
             self.iterations,
             self.step,
             100.0 * self.relative_error,
             100.0 * self.tolerance,
+            self.behaviour.describe(),
             self.remedy()
         )
     }

@@ -331,7 +331,15 @@ fn step_cloths<M: ClothMethod>(
                     stats.unconverged_steps += 1;
                     if !cloth.convergence_reported {
                         cloth.convergence_reported = true;
-                        cloth.not_converged = done.report.relative_error;
+                        cloth.not_converged = done.report.relative_error.map(|e| {
+                            let behaviour = crate::ecs::Unconverged::of(
+                                e,
+                                &cloth.last_good.velocities,
+                                &cloth.state.velocities,
+                                model.pinned(),
+                            );
+                            (e, behaviour)
+                        });
                     }
                 }
                 stats.substeps = done.substeps;

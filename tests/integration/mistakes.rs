@@ -2,8 +2,9 @@
 //! headless `MinimalPlugins` app. Each test asserts the typed status,
 //! message or error, never a log line.
 
-use bevy::math::Affine3A;
+use bevy::math::{Affine3A, Vec3A};
 use bevy::prelude::*;
+use bevy_cloth::Unconverged;
 use bevy_cloth::prelude::*;
 use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, StepError};
 
@@ -139,6 +140,9 @@ fn an_unconverged_stiff_cloth_is_flagged_once_and_a_converged_one_is_not() {
     assert_eq!(seen[0].iterations, 32);
     let text = seen[0].to_string();
     assert!(text.contains("'stiff'") && text.contains("'pd'"), "{text}");
+    // It hangs in the air: the message says so.
+    assert_eq!(seen[0].behaviour, Unconverged::Locked);
+    assert!(text.contains("locked in the air"), "{text}");
     let s = stats(&app, soft);
     assert!(s.converged, "{:?}", s.relative_error);
     assert_eq!(s.unconverged_steps, 0);
@@ -458,4 +462,34 @@ fn a_damping_per_second_settles_alike_at_any_rate_and_a_bad_one_is_refused() {
             s.status
         );
     }
+}
+
+#[test]
+fn an_unconverged_step_is_called_lagging_locked_or_oscillating_by_what_it_did() {
+    let down = [Vec3A::NEG_Y; 3];
+    let up = [Vec3A::Y; 3];
+    let free = [false; 3];
+    assert_eq!(
+        Unconverged::of(0.5, &down, &down, &free),
+        Unconverged::Lagging
+    );
+    assert_eq!(
+        Unconverged::of(3.0, &down, &down, &free),
+        Unconverged::Locked
+    );
+    assert_eq!(
+        Unconverged::of(0.5, &down, &up, &free),
+        Unconverged::Oscillating
+    );
+    // Pinned vertices do not count.
+    let mut mixed = up;
+    mixed[0] = Vec3A::NEG_Y * 10.0;
+    assert_eq!(
+        Unconverged::of(0.5, &down, &mixed, &[true, false, false]),
+        Unconverged::Oscillating
+    );
+    assert_eq!(
+        Unconverged::of(0.5, &down, &mixed, &[false, true, true]),
+        Unconverged::Lagging
+    );
 }
