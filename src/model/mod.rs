@@ -170,6 +170,33 @@ impl ClothModel {
         Ok(())
     }
 
+    /// The cloth vertices that the vertices `mesh_indices` of the mesh this
+    /// cloth was built from became (see [`welded_from`](Self::welded_from)),
+    /// in order, duplicates (welded copies) removed; an index past the mesh
+    /// is skipped. For a cloth not built from a mesh, or one neither welded
+    /// nor renumbered, the indices themselves. The builder's
+    /// [`with_pins`](ClothBuilder::with_pins) after
+    /// [`from_mesh`](ClothBuilder::from_mesh) and
+    /// [`mesh_vertices_where`](crate::model::mesh_vertices_where) speak mesh
+    /// indices; everything after [`ClothBuilder::build`] ([`vertices_where`](Self::vertices_where),
+    /// [`Attachment`](crate::Attachment), [`ClothState`]) speaks cloth
+    /// indices: this converts.
+    pub fn cloth_vertices(&self, mesh_indices: impl IntoIterator<Item = u32>) -> Vec<u32> {
+        let n = self.vertex_count();
+        let mut seen = vec![false; n];
+        let mut out = Vec::new();
+        for i in mesh_indices {
+            let v = match self.welded_from() {
+                Some(map) => map.get(i as usize).copied(),
+                None => ((i as usize) < n).then_some(i),
+            };
+            if let Some(v) = v.filter(|&v| !std::mem::replace(&mut seen[v as usize], true)) {
+                out.push(v);
+            }
+        }
+        out
+    }
+
     /// The vertices whose rest position satisfies `select`, in index order:
     /// pins by place (`|p| p.y > 0.99` for a top edge).
     pub fn vertices_where(&self, select: impl Fn(Vec3) -> bool) -> Vec<u32> {

@@ -392,6 +392,16 @@ fn a_mesh_split_along_a_uv_seam_is_welded_into_one_cloth() {
     }
     // Pins are mesh indices: 2 and its copy 25 are one cloth vertex.
     assert_eq!(model.pins(), &[0, 2]);
+    // The same in cloth indices, for `Attachment` and the state.
+    let pins = model.cloth_vertices([2, 25, 0, 99]);
+    assert_eq!(
+        pins,
+        [map[2], map[0]],
+        "welded copies once, past the mesh skipped"
+    );
+    let mut sorted = pins.clone();
+    sorted.sort_unstable();
+    assert_eq!(sorted, model.pins());
     // Every vertex is joined to the rest: each column-2 vertex has springs
     // to both sides.
     let topo = model.topology();
@@ -420,6 +430,7 @@ fn a_mesh_split_along_a_uv_seam_is_welded_into_one_cloth() {
         .unwrap();
     assert_eq!(split.vertex_count(), 30);
     assert!(split.welded_from().is_none());
+    assert_eq!(split.cloth_vertices([3, 3, 29, 30]), [3, 29]);
 }
 
 #[test]
