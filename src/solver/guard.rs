@@ -29,8 +29,9 @@ use crate::model::{ClothModel, ClothState};
 pub enum DivergenceReason {
     /// A position or velocity became NaN or infinite.
     NonFinite,
-    /// The method's linear solve failed (a matrix that is not positive
-    /// definite, or a failed factorisation); the state was left as it was.
+    /// The method's solve failed (a matrix that is not positive definite, a
+    /// failed factorisation, or Newton's line search finding no decrease);
+    /// the state was left as it was.
     SolveFailed,
     /// A spring became longer than [`GuardBounds::max_stretch`] allows.
     Stretch,
@@ -44,8 +45,8 @@ impl std::fmt::Display for DivergenceReason {
         f.write_str(match self {
             Self::NonFinite => "blew up: a position or velocity became NaN or infinite",
             Self::SolveFailed => {
-                "its solve failed: a matrix that is not positive definite, or a failed \
-                 factorisation"
+                "its solve failed: a matrix that is not positive definite, a failed \
+                 factorisation, or a line search that found no decrease"
             }
             Self::Stretch => {
                 "it is stretching apart: a spring passed the guard's stretch bound (far past what \

@@ -28,6 +28,10 @@ pub enum SolveError {
     /// The sparse factorisation failed or produced a non-finite solution.
     #[error("the sparse factorisation failed")]
     Factorization,
+    /// Newton's backtracking line search found no decrease of the objective
+    /// along its direction.
+    #[error("the line search found no decrease along the Newton direction")]
+    LineSearch,
 }
 
 /// A sparse Cholesky factorisation (faer, AMD ordering) whose symbolic

@@ -49,7 +49,9 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
 use super::params::check_budget;
-use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
+use super::{
+    ConvergenceSums, Method, ParamError, SolveError, StepError, StepInput, StepParams, StepReport,
+};
 use crate::collision::{PenaltySphere, PenaltySurface};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
@@ -292,6 +294,7 @@ impl Method for ExactSolver {
                 }
             }
             if !solved {
+                report.stalled = Some(SolveError::Factorization);
                 break;
             }
             // A Newton step below round-off: the gradient cannot get smaller in
@@ -335,6 +338,7 @@ impl Method for ExactSolver {
                 alpha *= 0.5;
             }
             if !accepted {
+                report.stalled = Some(SolveError::LineSearch);
                 break;
             }
             std::mem::swap(&mut ws.x, &mut ws.trial);
@@ -373,6 +377,13 @@ impl Method for ExactSolver {
         report.relative_gradient = if g0 > 0.0 { g_norm / g0 } else { 0.0 };
         report.converged = g_norm <= threshold || report.at_round_off;
         ws.last = report;
+        if let Some(error) = report.stalled.filter(|_| !report.converged) {
+            // Stopped short with nowhere to go: a typed failure the guard
+            // retries in substeps or stops the cloth on, never a silent
+            // half-step (the state still holds the step's start).
+            ws.penalties = penalties;
+            return Err(StepError::Solve(error));
+        }
         let relative_error = newton_error(model, state, ws, params, last_ratio);
         let ClothState {
             positions,
@@ -411,6 +422,10 @@ pub struct ExactReport {
     /// round-off (`‖d‖∞ ≤ 1e-11·max|x|`, far below the `f32` state's
     /// precision) before the gradient tolerance.
     pub at_round_off: bool,
+    /// Why the iteration stopped short, if it did: neither Hessian
+    /// factorised, or the line search found no decrease along the Newton
+    /// direction.
+    pub stalled: Option<SolveError>,
 }
 
 /// Scratch of the exact solver.

@@ -457,3 +457,30 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
     // Neither leaves the slope.
     assert!(held.dot(normal).abs() < 1e-2 && slid.dot(normal).abs() < 1e-2);
 }
+
+#[test]
+fn a_step_whose_hessian_never_factorises_is_a_typed_solve_failure_and_leaves_the_state() {
+    // Bad input straight to the solver: a penalty sphere of negative
+    // stiffness around the hanging cloth makes both Hessians indefinite.
+    // The step stops short with nowhere to go: `SolveError`, not a
+    // half-step reported as merely unconverged.
+    let model = ClothBuilder::lab().build().unwrap();
+    let params = StepParams::LAB;
+    let sphere = PenaltySphere::sphere(Vec3A::new(0.0, 0.0, 0.0), 30.0, -1e9);
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let before = state.clone();
+    let mut ws = ExactWorkspace::default();
+    let input = StepInput {
+        model: &model,
+        params: &params,
+        spheres: &[sphere],
+        contacts: &[],
+    };
+    let result = ExactSolver::BUDGET.step_with(input, &mut state, &mut ws);
+    assert_eq!(
+        result.unwrap_err(),
+        StepError::Solve(SolveError::Factorization)
+    );
+    assert_eq!(ws.last_report().stalled, Some(SolveError::Factorization));
+    assert_eq!(state, before, "the state is left at the step's start");
+}
