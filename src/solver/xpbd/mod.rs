@@ -218,7 +218,8 @@ impl Method for XpbdSolver {
         let base = self.substeps(params.dt);
         let k = params.stiffness.as_array();
         let substeps = if self.max_refinement > 1 && (!contacts.is_empty() || !spheres.is_empty()) {
-            let free = model.pinned().iter().filter(|p| !**p).count().max(1);
+            // Pins are unique (the model checks), so this is the free count.
+            let free = (n - model.pins().len()).max(1);
             let mass = model.free_mass() / free as f32;
             let refine = self.refinement(base, params.dt, k[SpringKind::Stretch as usize], mass);
             let near = refine > 1 && {
