@@ -89,14 +89,10 @@ fn gather_avian(
     let avian = &mut gathered.bypass_change_detection().avian;
     avian.clear();
     for (entity, collider, friction) in &colliders {
-        let Ok(global) = helper.compute_global_transform(entity) else {
+        let Some(Ok((translation, rotation, friction))) = placement(&helper, entity, friction)
+        else {
             continue;
         };
-        let (_, rotation, translation) = global.to_scale_rotation_translation();
-        let friction = friction.copied().unwrap_or_default().dynamic_coefficient;
-        if !(translation.is_finite() && rotation.is_finite() && friction >= 0.0) {
-            continue;
-        }
         if let Some(shape) = primitive(collider, translation, rotation, friction) {
             avian.push(shape);
         }
@@ -161,6 +157,27 @@ fn primitive(
     finite.then_some(placed)
 }
 
+/// An avian collider's world translation, rotation and friction (its
+/// dynamic coefficient, avian's default without a [`Friction`]): `None`
+/// without a global transform, `Err(friction)` if the pose is not finite or
+/// the friction is negative.
+fn placement(
+    helper: &TransformHelper,
+    entity: Entity,
+    friction: Option<&Friction>,
+) -> Option<Result<(Vec3, Quat, f32), f32>> {
+    let global = helper.compute_global_transform(entity).ok()?;
+    let (_, rotation, translation) = global.to_scale_rotation_translation();
+    let friction = friction.copied().unwrap_or_default().dynamic_coefficient;
+    Some(
+        if translation.is_finite() && rotation.is_finite() && friction >= 0.0 {
+            Ok((translation, rotation, friction))
+        } else {
+            Err(friction)
+        },
+    )
+}
+
 /// Projects every running cloth out of every avian collider.
 fn project_on_avian(
     time: Res<Time>,
@@ -172,21 +189,20 @@ fn project_on_avian(
 ) {
     placed.clear();
     for (entity, collider, friction) in &colliders {
-        let Ok(global) = helper.compute_global_transform(entity) else {
-            continue;
-        };
-        let (_, rotation, translation) = global.to_scale_rotation_translation();
-        let friction = friction.copied().unwrap_or_default().dynamic_coefficient;
-        if !(translation.is_finite() && rotation.is_finite() && friction >= 0.0) {
-            if !warned.contains(&entity) {
-                warn!(
-                    "avian collider {entity} skipped by the cloths: its transform must be finite \
+        let (translation, rotation, friction) = match placement(&helper, entity, friction) {
+            None => continue,
+            Some(Ok(placed)) => placed,
+            Some(Err(friction)) => {
+                if !warned.contains(&entity) {
+                    warn!(
+                        "avian collider {entity} skipped by the cloths: its transform must be finite \
                      and its friction ≥ 0 (got {friction})"
-                );
-                warned.push(entity);
+                    );
+                    warned.push(entity);
+                }
+                continue;
             }
-            continue;
-        }
+        };
         placed.push(Placed {
             collider: collider.clone(),
             translation,

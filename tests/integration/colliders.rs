@@ -238,6 +238,23 @@ fn no_method_gains_energy_resting_on_a_stiff_penalty_box() {
     }
 }
 
+/// An app with what `spawn` puts in its world and the lab cloth at
+/// stiffness `k` stepped by `method`.
+fn lab_cloth_over(method: AnyMethod, k: f32, spawn: impl FnOnce(&mut World)) -> (App, Entity) {
+    let mut app = app();
+    spawn(app.world_mut());
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth::build(ClothBuilder::lab()).unwrap(),
+            ClothParams::default().with_stiffness(k),
+            Transform::default(),
+        ))
+        .id();
+    method.insert(&mut app.world_mut().commands().entity(cloth));
+    (app, cloth)
+}
+
 /// The lab cloth at `k = 1e7` with `method`, falling onto the lab's sphere
 /// for 3 s: its max stretch and how many vertices were inside the sphere
 /// after any fixed step (the plugin's projection runs after the step for
@@ -248,20 +265,12 @@ fn stiff_cloth_on_the_sphere(method: AnyMethod) -> (f32, usize) {
 
 /// [`stiff_cloth_on_the_sphere`] at stiffness `k` for `steps` steps.
 fn stiff_cloth_on_the_sphere_at(method: AnyMethod, k: f32, steps: usize) -> (f32, usize) {
-    let mut app = app();
-    app.world_mut().spawn((
-        SphereCollider::new(2.7),
-        Transform::from_xyz(0.0, -4.0, 4.0),
-    ));
-    let cloth = app
-        .world_mut()
-        .spawn((
-            Cloth::build(ClothBuilder::lab()).unwrap(),
-            ClothParams::default().with_stiffness(k),
-            Transform::default(),
-        ))
-        .id();
-    method.insert(&mut app.world_mut().commands().entity(cloth));
+    let (mut app, cloth) = lab_cloth_over(method, k, |world| {
+        world.spawn((
+            SphereCollider::new(2.7),
+            Transform::from_xyz(0.0, -4.0, 4.0),
+        ));
+    });
     let mut inside = 0;
     for _ in 0..steps {
         run_steps(&mut app, 1);
@@ -393,17 +402,7 @@ fn stiff_cloth_onto(
     spawn: impl Fn(&mut World),
     inside: impl Fn(Vec3A) -> f32,
 ) -> (f32, f32, bool) {
-    let mut app = app();
-    spawn(app.world_mut());
-    let cloth = app
-        .world_mut()
-        .spawn((
-            Cloth::build(ClothBuilder::lab()).unwrap(),
-            ClothParams::default().with_stiffness(k),
-            Transform::default(),
-        ))
-        .id();
-    method.insert(&mut app.world_mut().commands().entity(cloth));
+    let (mut app, cloth) = lab_cloth_over(method, k, spawn);
     let mut deepest = f32::MIN;
     for _ in 0..steps {
         run_steps(&mut app, 1);
