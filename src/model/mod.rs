@@ -177,7 +177,7 @@ impl ClothModel {
     /// nor renumbered, the indices themselves. The builder's
     /// [`with_pins`](ClothBuilder::with_pins) after
     /// [`from_mesh`](ClothBuilder::from_mesh) and
-    /// [`mesh_vertices_where`](crate::model::mesh_vertices_where) speak mesh
+    /// [`mesh_vertices_where`] speak mesh
     /// indices; everything after [`ClothBuilder::build`] ([`vertices_where`](Self::vertices_where),
     /// [`Attachment`](crate::Attachment), [`ClothState`]) speaks cloth
     /// indices: this converts.
