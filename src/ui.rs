@@ -18,7 +18,7 @@ use crate::ecs::{
     SphereResponse,
 };
 use crate::methods::{AnyMethod, AnyMethodData, PRESETS};
-use crate::model::{ClothBuildError, ClothModel};
+use crate::model::{ClothBuildError, ClothMaterial, ClothModel};
 use crate::solver::chebyshev::Rho;
 use crate::solver::linear::{LinearSolver, PenaltyJacobian, Preconditioner, SpringJacobian};
 use crate::solver::projective::{
@@ -200,6 +200,7 @@ fn inspector_panel(
     mut cloths: Query<ClothItem>,
     method_of: Query<AnyMethodData>,
     mut colliders: Query<(Entity, &mut SphereCollider)>,
+    mut materials: Query<&mut ClothMaterial>,
     mut meshes: ResMut<Assets<Mesh>>,
     diagnostics: Option<Res<DiagnosticsStore>>,
     mut commands: Commands,
@@ -252,7 +253,7 @@ fn inspector_panel(
                                 mut cloth,
                                 mut params,
                                 mut stats,
-                                _,
+                                resolution,
                                 _,
                                 transform,
                                 defaults,
@@ -260,6 +261,14 @@ fn inspector_panel(
                             ) in &mut cloths
                             {
                                 reset_cloth(&mut cloth, &mut stats, transform);
+                                if materials.contains(entity) {
+                                    drop_material(
+                                        &mut commands,
+                                        entity,
+                                        &mut cloth,
+                                        resolution.as_deref(),
+                                    );
+                                }
                                 if let Some(defaults) = defaults {
                                     *params = defaults.params;
                                     if let Some(method) = defaults.method {
@@ -321,6 +330,14 @@ fn inspector_panel(
                             ui.label("scene:");
                             for scene in &scenes.0 {
                                 if ui.button(scene.label).on_hover_text(scene.about).clicked() {
+                                    if materials.contains(entity) {
+                                        drop_material(
+                                            &mut commands,
+                                            entity,
+                                            &mut cloth,
+                                            resolution.as_deref(),
+                                        );
+                                    }
                                     *params = scene.params;
                                     scene.method.insert(&mut commands.entity(entity));
                                 }
@@ -331,8 +348,17 @@ fn inspector_panel(
                     method_ui(ui, &methods, &mut commands, entity, current);
                     ui.separator();
                     let defaults = defaults.map_or_else(ClothParams::default, |d| d.params);
-                    // PBD restores rest lengths: it has no stiffness to tune.
-                    let stiffness = !matches!(current, Some(AnyMethod::Pbd(_)));
+                    let material = material_ui(
+                        ui,
+                        &mut commands,
+                        entity,
+                        materials.get_mut(entity).ok(),
+                        &mut cloth,
+                        resolution.as_deref(),
+                    );
+                    // PBD restores rest lengths: it has no stiffness to tune;
+                    // a material sets the springs' every step.
+                    let stiffness = !matches!(current, Some(AnyMethod::Pbd(_))) && !material;
                     let kinds = cloth.model().topology().spring_counts();
                     params_ui(ui, &mut params, &defaults, stiffness, kinds);
                     if let Some(mut resolution) = resolution {
@@ -365,6 +391,67 @@ fn inspector_panel(
         });
     release_focus(ctx);
     Ok(())
+}
+
+/// The cloth as a material (`ClothMaterial`: sheet stiffness in N/m,
+/// areal density in kg/m²) or with the per-spring `k` and per-vertex masses
+/// it was built with; returns whether it has a material now.
+fn material_ui(
+    ui: &mut egui::Ui,
+    commands: &mut Commands,
+    entity: Entity,
+    material: Option<Mut<ClothMaterial>>,
+    cloth: &mut Cloth,
+    resolution: Option<&ClothResolution>,
+) -> bool {
+    let mut on = material.is_some();
+    if ui
+        .checkbox(&mut on, "as a material (N/m, kg/m²)")
+        .on_hover_text(
+            "cotton to start with: the sheet's stiffness and mass per m² set every spring's k \
+             and every vertex's mass, the same at every resolution; off keeps the springs' k \
+             the material gave (its reset restores the scene's) and rebuilds the cloth with its \
+             own masses",
+        )
+        .changed()
+    {
+        if on {
+            commands.entity(entity).insert(ClothMaterial::COTTON);
+        } else {
+            drop_material(commands, entity, cloth, resolution);
+        }
+        return on;
+    }
+    let Some(mut material) = material else {
+        return false;
+    };
+    let m = material.bypass_change_detection();
+    let before = *m;
+    let d = ClothMaterial::COTTON;
+    log_value(ui, &mut m.stretch, d.stretch, "sheet stretch (N/m)");
+    log_value(ui, &mut m.density, d.density, "areal density (kg/m²)");
+    if *m != before {
+        material.set_changed();
+    }
+    true
+}
+
+/// Removes a cloth's material; a cloth the panel can rebuild (one with a
+/// [`ClothResolution`]) is rebuilt with its own masses, which the material
+/// had replaced.
+fn drop_material(
+    commands: &mut Commands,
+    entity: Entity,
+    cloth: &mut Cloth,
+    resolution: Option<&ClothResolution>,
+) {
+    commands.entity(entity).remove::<ClothMaterial>();
+    if let Some(resolution) = resolution {
+        match (resolution.build)(resolution.n) {
+            Ok(model) => *cloth = Cloth::new(model),
+            Err(e) => warn!("cannot rebuild the cloth without its material: {e}"),
+        }
+    }
 }
 
 /// egui keeps keyboard focus on the last slider or button clicked, and while
@@ -777,10 +864,9 @@ fn stats_ui(
                 format!(
                     "{text}: not converged (raise iterations, or use {})",
                     match stats.method {
-                        "pd" => "pd-anderson",
-                        "pd-anderson" => "newton",
+                        "pd" | "pd-anderson" => "stiff or newton",
                         "newton" | "exact" => "a smaller time step",
-                        _ => "pd",
+                        _ => "stiff or pd",
                     }
                 ),
             );
