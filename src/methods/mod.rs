@@ -21,7 +21,7 @@
 //! Adding a method (`CONTRIBUTING.md` has the whole list): write
 //! `solver/<method>/` with its settings type and its [`Method`] impl, add
 //! one line to `method_table!`, its presets to [`PRESETS`], and its widgets
-//! to the panel's exhaustive match (`ui.rs`).
+//! to the panel's exhaustive match (`ui/settings.rs`).
 
 use core::any::{Any, TypeId};
 
