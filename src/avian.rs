@@ -33,7 +33,8 @@ use bevy::transform::helper::TransformHelper;
 
 use crate::collision::{Capsule, Cuboid, Plane, Shape, project_contacts};
 use crate::ecs::{
-    ClothCorePlugin, ClothSchedule, ClothSystems, gather_shapes, project_after_shapes,
+    ClothCorePlugin, ClothSchedule, ClothSystems, ColliderMotion, gather_shapes,
+    project_after_shapes,
 };
 use crate::{Cloth, ClothColliders, ClothParams};
 
@@ -82,21 +83,28 @@ struct Placed {
 /// any with a non-finite pose or a negative friction, are left to
 /// [`project_on_avian`] (which warns of the latter).
 fn gather_avian(
+    time: Res<Time>,
     helper: TransformHelper,
     colliders: Query<(Entity, &Collider, Option<&Friction>), Without<Sensor>>,
     mut gathered: ResMut<ClothColliders>,
+    mut motion: Local<ColliderMotion>,
 ) {
-    let avian = &mut gathered.bypass_change_detection().avian;
-    avian.clear();
+    let dt = time.delta_secs();
+    let gathered = gathered.bypass_change_detection();
+    gathered.avian.clear();
     for (entity, collider, friction) in &colliders {
         let Some(Ok((translation, rotation, friction))) = placement(&helper, entity, friction)
         else {
             continue;
         };
+        // Every avian collider's motion, the ones projected after the step
+        // too.
+        motion.saw(entity, Vec3A::from(translation), dt);
         if let Some(shape) = primitive(collider, translation, rotation, friction) {
-            avian.push(shape);
+            gathered.avian.push(shape);
         }
     }
+    gathered.speeds[2] = motion.finish();
 }
 
 /// An avian collider as one of the crate's shapes, placed at

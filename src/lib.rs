@@ -298,7 +298,7 @@
 //!             (penalty spheres, planes, capsules, boxes act inside the step: forces, and stiffness in A; in pd,
 //!              projective terms with their stiffness on the matrix's diagonal; projection ones too, and
 //!              avian's primitives: projected in stiff's substeps, penalty terms in pd's and newton's objectives)
-//!             guard: state finite, stretch ≤ bound (or shrinking), energy ≤ bound?
+//!             guard: state finite, stretch ≤ bound (or shrinking), speed ≤ bound, energy ≤ bound?
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)
 //! Collide:  for each cloth, each projection sphere: move vertices inside to the surface

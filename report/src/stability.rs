@@ -555,7 +555,8 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
          from 2.8e-3 at k = 1e1 to 2.8e4 at k = 1e8, so the grid covers a game's cape masses) \
          under the divergence guard (pause policy, default bounds without the 10× cap: \
          stretch ≤ 0.5 + 10× the stretch the cloth's whole weight would give one spring, or \
-         not growing) \
+         not growing; speed ≤ 10× a fall from the pins to the cloth's far end plus its size \
+         per step and the sphere's own speed) \
          for {} s of simulated time, at most {} steps (so {} s at dt = 1e-4 and {} s at dt = 1e-3), \
          in three scenes: hanging free, falling onto the lab's sphere, and draped on it at rest. \
          A run is compared with its reference over the whole run (`long_run` in the report's \

@@ -52,6 +52,52 @@ pub struct ClothColliders {
     /// substeps, terms of `pd`'s and `newton`'s objectives), and projected
     /// after it with every other avian collider. Empty without that plugin.
     pub avian: Vec<Shape>,
+    /// How fast the fastest collider of each kind moved over the last step
+    /// (sphere colliders, the shape colliders, avian's; its translation
+    /// since the step before over `dt`, 0 for one first seen): what the
+    /// guard's speed bound allows the cloth beyond its own fall (see
+    /// [`max_speed`](Self::max_speed)).
+    pub speeds: [f32; 3],
+}
+
+impl ClothColliders {
+    /// How fast the fastest collider moved over the last step
+    /// ([`speeds`](Self::speeds)' largest); the step's
+    /// [`StepParams::collider_speed`](crate::solver::StepParams::collider_speed).
+    pub fn max_speed(&self) -> f32 {
+        self.speeds.into_iter().fold(0.0, f32::max)
+    }
+}
+
+/// Where each collider of one kind was at the last gather, to measure how
+/// fast the colliders move ([`ClothColliders::speeds`]). Two maps swapped
+/// each step, so it allocates only as colliders are added, and forgets a
+/// despawned one.
+#[derive(Default)]
+pub(crate) struct ColliderMotion {
+    last: bevy::ecs::entity::EntityHashMap<Vec3A>,
+    now: bevy::ecs::entity::EntityHashMap<Vec3A>,
+    fastest: f32,
+}
+
+impl ColliderMotion {
+    /// Notes that `entity` is at `at` this step, `dt` after the last.
+    pub(crate) fn saw(&mut self, entity: Entity, at: Vec3A, dt: f32) {
+        if let Some(&was) = self.last.get(&entity) {
+            let speed = (at - was).length() / dt;
+            if speed.is_finite() {
+                self.fastest = self.fastest.max(speed);
+            }
+        }
+        self.now.insert(entity, at);
+    }
+
+    /// The fastest speed noted since the last call; starts the next step.
+    pub(crate) fn finish(&mut self) -> f32 {
+        std::mem::swap(&mut self.last, &mut self.now);
+        self.now.clear();
+        std::mem::take(&mut self.fastest)
+    }
 }
 
 /// How a plane, capsule or box acts on the cloth: the same two responses
@@ -141,11 +187,14 @@ fn spheres_present(
 /// with a negative or non-finite radius, stiffness or position is skipped
 /// with a warning (once per entity).
 fn gather_spheres(
+    time: Res<Time>,
     helper: TransformHelper,
     colliders: Query<(Entity, &SphereCollider)>,
     mut spheres: ResMut<ClothColliders>,
     mut warned: Local<Vec<Entity>>,
+    mut motion: Local<ColliderMotion>,
 ) {
+    let dt = time.delta_secs();
     let spheres = spheres.bypass_change_detection();
     spheres.projection.clear();
     spheres.penalty.clear();
@@ -154,6 +203,7 @@ fn gather_spheres(
             continue;
         };
         let center = global.translation_vec3a();
+        motion.saw(entity, center, dt);
         let radius = collider.radius;
         let valid_radius = radius.is_finite()
             && radius >= 0.0
@@ -189,6 +239,7 @@ fn gather_spheres(
             }
         }
     }
+    spheres.speeds[0] = motion.finish();
 }
 
 /// Projects every running cloth out of every projection sphere.
@@ -412,14 +463,18 @@ fn non_negative(values: &[f32]) -> bool {
 /// with a negative or non-finite size, friction or thickness, or a
 /// non-finite transform, is skipped with a warning (once per entity).
 pub(crate) fn gather_shapes(
+    time: Res<Time>,
     helper: TransformHelper,
     colliders: Query<ShapeColliders, AnyShape>,
     mut gathered: ResMut<ClothColliders>,
     mut warned: Local<Vec<Entity>>,
+    mut motion: Local<ColliderMotion>,
 ) {
+    let dt = time.delta_secs();
     let ClothColliders {
         shapes,
         penalty_shapes,
+        speeds,
         ..
     } = gathered.bypass_change_detection();
     shapes.clear();
@@ -430,6 +485,7 @@ pub(crate) fn gather_shapes(
         };
         let (_, rotation, translation) = global.to_scale_rotation_translation();
         let center = Vec3A::from(translation);
+        motion.saw(entity, center, dt);
         let axes =
             [Vec3::X, Vec3::Y, Vec3::Z].map(|a| Vec3A::from(rotation * a).normalize_or_zero());
         let placed = center.is_finite() && axes.iter().all(|a| *a != Vec3A::ZERO);
@@ -501,6 +557,7 @@ pub(crate) fn gather_shapes(
             );
         }
     }
+    speeds[1] = motion.finish();
 }
 
 /// Projects every running cloth out of every shape.

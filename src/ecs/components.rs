@@ -304,6 +304,8 @@ impl ClothParams {
             simd: crate::solver::Simd::Auto,
             // The structure-of-arrays kernels wherever the cloth is a grid.
             stencil: true,
+            // Set by the plugin from the colliders' motion.
+            collider_speed: 0.0,
         }
     }
 

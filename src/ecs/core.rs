@@ -299,7 +299,7 @@ fn follow_anchors(
 /// restores the state from before the step and stops the cloth), records
 /// stretch and energy, and sends the [`ClothDiverged`] messages.
 fn guard_and_measure(
-    time: Res<Time>,
+    (time, colliders): (Res<Time>, Res<super::ClothColliders>),
     mut cloths: Query<(
         Entity,
         &mut Cloth,
@@ -348,6 +348,7 @@ fn guard_and_measure(
             return;
         }
         let mut params = params.step_params(dt);
+        params.collider_speed = colliders.max_speed();
         // What the step's own guard check measured, if nothing has
         // touched the state since (collision and `Cloth::state_mut` drop
         // it): the same check on the same state, so it is not done twice.

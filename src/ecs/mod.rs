@@ -73,7 +73,8 @@ pub use collision::{
 };
 #[cfg(feature = "avian")]
 pub(crate) use collision::{
-    gather_shapes, project_cloths_on_shapes as project_after_shapes, project_running_cloths,
+    ColliderMotion, gather_shapes, project_cloths_on_shapes as project_after_shapes,
+    project_running_cloths,
 };
 pub use components::{
     Cloth, ClothGuard, ClothParams, ClothStateMut, ClothStats, ClothStatus, GuardAction,

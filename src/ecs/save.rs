@@ -54,6 +54,9 @@ pub struct ClothSnapshot {
     pub halvings: u8,
     /// Steps in a row that passed at the current halving.
     pub calm_steps: u32,
+    /// The guard's [`recovering`](GuardMemory::recovering).
+    #[cfg_attr(feature = "serialize", serde(default))]
+    pub recovering: bool,
 }
 
 impl Cloth {
@@ -71,6 +74,7 @@ impl Cloth {
                 .collect(),
             halvings: self.guard_memory.halvings,
             calm_steps: self.guard_memory.calm_steps,
+            recovering: self.guard_memory.recovering,
         }
     }
 
@@ -115,6 +119,7 @@ impl Cloth {
         self.guard_memory = GuardMemory {
             halvings: snapshot.halvings,
             calm_steps: snapshot.calm_steps,
+            recovering: snapshot.recovering,
         };
         self.measured = None;
         self.initialized = true;

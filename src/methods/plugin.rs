@@ -239,7 +239,10 @@ fn step_cloths<M: ClothMethod>(
         }
         let cloth = &mut *cloth;
         let particle_radius = params.particle_radius;
-        let params = params.step_params(dt);
+        let params = crate::solver::StepParams {
+            collider_speed: colliders.max_speed(),
+            ..params.step_params(dt)
+        };
         let ws = &mut *ws;
         ws.penalty.clear();
         ws.penalty.extend(

@@ -5,7 +5,9 @@
 //! velocity becomes NaN or infinite, or when the cloth leaves the bounds of a
 //! [`GuardBounds`]: a spring stretched beyond `max_stretch` times its rest
 //! length or beyond what the cloth's weight could stretch it
-//! ([`GuardBounds::stretch_bound`]), or a total energy beyond `max_energy`. The bounds catch a blow-up
+//! ([`GuardBounds::stretch_bound`]), a free vertex faster than its fall,
+//! its pins and its colliders could make it ([`GuardBounds::speed_bound`]),
+//! or a total energy beyond `max_energy`. The bounds catch a blow-up
 //! while the state is still finite, so the state the guard keeps is never
 //! absurd.
 //!
@@ -37,6 +39,8 @@ pub enum DivergenceReason {
     Stretch,
     /// The total energy exceeded [`GuardBounds::max_energy`].
     Energy,
+    /// A free vertex moved faster than [`GuardBounds::speed_bound`] allows.
+    Speed,
 }
 
 impl std::fmt::Display for DivergenceReason {
@@ -53,6 +57,10 @@ impl std::fmt::Display for DivergenceReason {
                  its weight and stiffness allow)"
             }
             Self::Energy => "it is gaining energy: its energy passed the guard's bound",
+            Self::Speed => {
+                "it is flying apart: a vertex moved far faster than gravity, its pins and its \
+                 colliders could make it (the guard's speed bound)"
+            }
         })
     }
 }
@@ -89,6 +97,21 @@ pub struct GuardBounds {
     /// (the default) checks none. It depends on the scene, so only its
     /// author can set it.
     pub max_energy: Option<f64>,
+    /// The speed bound of a cloth held by pins (see
+    /// [`GuardBounds::speed_bound`]): a free vertex may move at most
+    /// `speed_factor · √(2|g|·D) + v_pin + v_collider + D/dt`, where `D` is
+    /// the cloth's size, `√(2|g|·D)` the speed of a fall from its pins'
+    /// height to its far end, `v_pin` the fastest pin and `v_collider` the
+    /// fastest collider (what holds or pushes the cloth may move it as fast
+    /// as it likes), and `D/dt` crossing its own size in one step. Default
+    /// `10`: a 1 m cape at 60 Hz may move about 100 m/s faster than its
+    /// pins and colliders, the lab's cloth about 600 m/s; past that it is
+    /// exploding. A cloth without pins falls as
+    /// fast as gravity makes it and has no speed bound. `None` checks none.
+    /// Like the stretch bounds, it passes a step that began beyond the
+    /// stretch bound: a cloth recovering from a pin teleported far away
+    /// moves fast.
+    pub speed_factor: Option<f32>,
 }
 
 impl Default for GuardBounds {
@@ -97,6 +120,7 @@ impl Default for GuardBounds {
             max_stretch: Some(10.0),
             load_factor: Some(10.0),
             max_energy: None,
+            speed_factor: Some(10.0),
         }
     }
 }
@@ -107,6 +131,7 @@ impl GuardBounds {
         max_stretch: None,
         load_factor: None,
         max_energy: None,
+        speed_factor: None,
     };
 
     /// These bounds for a method that does (`uses_stiffness`) or does not
@@ -141,6 +166,11 @@ impl GuardBounds {
         {
             return Err(ParamError::Bound(e));
         }
+        if let Some(f) = self.speed_factor
+            && (f.is_nan() || f < 0.0)
+        {
+            return Err(ParamError::Bound(f64::from(f)));
+        }
         Ok(())
     }
 
@@ -165,6 +195,29 @@ impl GuardBounds {
         }
     }
 
+    /// The largest speed a free vertex of this cloth may reach in a step of
+    /// `params.dt` while its pins move at most `pin_speed` and its colliders
+    /// at most [`params.collider_speed`](StepParams::collider_speed):
+    /// `speed_factor · √(2|g|·D) + pin_speed + collider_speed + D/dt` with
+    /// `D` the cloth's [size](ClothModel::size) (see
+    /// [`speed_factor`](Self::speed_factor)). `None` without a factor, for a
+    /// cloth without pins, or when a speed is not finite.
+    pub fn speed_bound(
+        &self,
+        model: &ClothModel,
+        params: &StepParams,
+        pin_speed: f32,
+    ) -> Option<f32> {
+        let factor = self.speed_factor?;
+        if model.pins().is_empty() || params.dt <= 0.0 {
+            return None;
+        }
+        let size = model.size();
+        let fall = (2.0 * params.gravity.length() * size).sqrt();
+        let bound = factor * fall + pin_speed + params.collider_speed + size / params.dt as f32;
+        bound.is_finite().then_some(bound)
+    }
+
     /// Checks `state` after a step from `before`: finite, and within the
     /// bounds that are set. A stretch beyond the bound passes if it is no
     /// larger than before the step: the cloth is recovering from something
@@ -179,17 +232,43 @@ impl GuardBounds {
         before: &ClothState,
         params: &StepParams,
     ) -> Result<Measured, DivergenceReason> {
+        self.check_recovering(model, state, before, params, false)
+            .map(|(measured, _)| measured)
+    }
+
+    /// [`check`](Self::check) for a cloth that may be `recovering` (see
+    /// [`GuardMemory::recovering`]); also says whether the cloth is (still)
+    /// recovering: faster than the speed bound, passed because the step
+    /// began beyond the stretch bound or the cloth was recovering already.
+    fn check_recovering(
+        &self,
+        model: &ClothModel,
+        state: &ClothState,
+        before: &ClothState,
+        params: &StepParams,
+        recovering: bool,
+    ) -> Result<(Measured, bool), DivergenceReason> {
         let measured = measure(model, state, params).ok_or(DivergenceReason::NonFinite)?;
-        if let Some(bound) = self.stretch_bound(model, params) {
+        let bound = self.stretch_bound(model, params);
+        // Measured once, and only when a bound needs it (`before` passed the
+        // guard, so it is finite).
+        let mut stretch_before = None;
+        let mut before_stretch =
+            || *stretch_before.get_or_insert_with(|| max_stretch(model, &before.positions));
+        if let Some(bound) = bound {
             let stretch = measured.max_stretch;
-            // Fails if it grew while beyond the bound (`before` passed the
-            // guard, so it is finite).
-            if stretch > bound
-                && max_stretch(model, &before.positions)
-                    .partial_cmp(&stretch)
-                    .is_some_and(|o| o.is_lt())
-            {
+            // Fails if it grew while beyond the bound.
+            if stretch > bound && before_stretch() < stretch {
                 return Err(DivergenceReason::Stretch);
+            }
+        }
+        let mut still_recovering = false;
+        if let Some(limit) = self.speed_bound(model, params, measured.max_pin_speed)
+            && measured.max_free_speed > limit
+        {
+            still_recovering = recovering || bound.is_some_and(|b| before_stretch() > b);
+            if !still_recovering {
+                return Err(DivergenceReason::Speed);
             }
         }
         if let Some(bound) = self.max_energy
@@ -197,7 +276,7 @@ impl GuardBounds {
         {
             return Err(DivergenceReason::Energy);
         }
-        Ok(measured)
+        Ok((measured, still_recovering))
     }
 }
 
@@ -263,6 +342,11 @@ pub struct GuardMemory {
     pub halvings: u8,
     /// Steps in a row that passed at the current level.
     pub calm_steps: u32,
+    /// The cloth is recovering from something done to it (a step began
+    /// beyond the stretch bound: a pin teleported far away) and still moves
+    /// faster than [`GuardBounds::speed_bound`]: the speed bound waits until
+    /// it has slowed down.
+    pub recovering: bool,
 }
 
 /// Steps in a row that must pass before [`GuardMemory`] drops one halving.
@@ -297,8 +381,14 @@ where
     };
     let start = memory.halvings.min(max_halvings);
     backup.copy_from(state);
-    let first = match try_level(bounds, model, state, backup, params, start, &mut step) {
-        Ok((report, measured)) => {
+    let check = Check {
+        bounds,
+        model,
+        recovering: memory.recovering,
+    };
+    let first = match try_level(&check, state, backup, params, start, &mut step) {
+        Ok((report, measured, recovering)) => {
+            memory.recovering = recovering;
             memory.halvings = start;
             memory.calm_steps += 1;
             if memory.calm_steps >= RELAX_AFTER && memory.halvings > 0 {
@@ -320,9 +410,10 @@ where
     };
     for h in start + 1..=max_halvings {
         state.copy_from(backup);
-        if let Ok((report, measured)) =
-            try_level(bounds, model, state, backup, params, h, &mut step)
+        if let Ok((report, measured, recovering)) =
+            try_level(&check, state, backup, params, h, &mut step)
         {
+            memory.recovering = recovering;
             memory.halvings = (h + 1).min(max_halvings);
             memory.calm_steps = 0;
             return Ok(GuardedStep {
@@ -340,16 +431,24 @@ where
     })
 }
 
-/// `2^halvings` substeps of `dt / 2^halvings`.
+/// What a try checks its substeps against: the bounds, and whether the
+/// cloth was recovering before the step (see [`GuardMemory::recovering`]).
+struct Check<'a> {
+    bounds: &'a GuardBounds,
+    model: &'a ClothModel,
+    recovering: bool,
+}
+
+/// `2^halvings` substeps of `dt / 2^halvings`; with what the last one
+/// measured and whether the cloth is still recovering after it.
 fn try_level<F>(
-    bounds: &GuardBounds,
-    model: &ClothModel,
+    check: &Check,
     state: &mut ClothState,
     before: &ClothState,
     params: &StepParams,
     halvings: u8,
     step: &mut F,
-) -> Result<(StepReport, Measured), Failure>
+) -> Result<(StepReport, Measured, bool), Failure>
 where
     F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
 {
@@ -358,7 +457,7 @@ where
         dt: params.dt / f64::from(substeps),
         ..*params
     };
-    try_substeps(bounds, model, state, before, &sub, substeps, step)
+    try_substeps(check, state, before, &sub, substeps, step)
 }
 
 enum Failure {
@@ -367,18 +466,17 @@ enum Failure {
 }
 
 fn try_substeps<F>(
-    bounds: &GuardBounds,
-    model: &ClothModel,
+    check: &Check,
     state: &mut ClothState,
     before: &ClothState,
     params: &StepParams,
     substeps: u32,
     step: &mut F,
-) -> Result<(StepReport, Measured), Failure>
+) -> Result<(StepReport, Measured, bool), Failure>
 where
     F: FnMut(&mut ClothState, &StepParams) -> Result<StepReport, StepError>,
 {
-    let mut last = (StepReport::default(), Measured::default());
+    let mut last = (StepReport::default(), Measured::default(), check.recovering);
     for _ in 0..substeps {
         let report = match step(state, params) {
             Ok(report) => report,
@@ -387,10 +485,11 @@ where
             }
             Err(e) => return Err(Failure::Refused(e)),
         };
-        let measured = bounds
-            .check(model, state, before, params)
+        let (measured, recovering) = check
+            .bounds
+            .check_recovering(check.model, state, before, params, last.2)
             .map_err(Failure::Diverged)?;
-        last = (report, measured);
+        last = (report, measured, recovering);
     }
     Ok(last)
 }
@@ -401,7 +500,7 @@ mod tests {
     use crate::model::ClothBuilder;
     use crate::solver::symplectic::{SymplecticSolver, SymplecticWorkspace};
     use crate::solver::{Method, energy};
-    use bevy::math::Affine3A;
+    use bevy::math::{Affine3A, Vec3A};
 
     fn lab() -> (ClothModel, ClothState) {
         let model = ClothBuilder::lab().build().unwrap();
@@ -543,5 +642,145 @@ mod tests {
             .unwrap();
         assert_eq!(measured.energy, e);
         assert_eq!(measured.max_stretch, max_stretch(&model, &state.positions));
+    }
+
+    #[test]
+    fn a_cloth_flung_far_faster_than_its_fall_is_caught_by_the_speed_bound() {
+        let (model, state) = lab();
+        let params = StepParams::LAB;
+        let bounds = GuardBounds::default();
+        // Lab cloth: √(2·9.8·14.1)·10 + 14.1/0.0333 ≈ 590 m/s.
+        let limit = bounds.speed_bound(&model, &params, 0.0).unwrap();
+        assert!((550.0..650.0).contains(&limit), "{limit}");
+        // No spring stretched (a rigid motion of the free vertices), so only
+        // the speed can tell.
+        let flung = |speed: f32| {
+            let mut s = state.clone();
+            for (v, &pinned) in s.velocities.iter_mut().zip(model.pinned()) {
+                if !pinned {
+                    *v = Vec3A::new(0.0, 0.0, speed);
+                }
+            }
+            s
+        };
+        let fast = flung(1.5 * limit);
+        assert_eq!(
+            bounds.check(&model, &fast, &state, &params),
+            Err(DivergenceReason::Speed)
+        );
+        let before_the_change = GuardBounds {
+            speed_factor: None,
+            ..bounds
+        };
+        assert!(
+            before_the_change
+                .check(&model, &fast, &state, &params)
+                .is_ok()
+        );
+        // A swing well inside it passes, and so does the same speed when the
+        // pins move that fast (the cloth is carried).
+        assert!(
+            bounds
+                .check(&model, &flung(0.5 * limit), &state, &params)
+                .is_ok()
+        );
+        let mut carried = fast.clone();
+        carried
+            .velocities
+            .iter_mut()
+            .for_each(|v| *v = Vec3A::new(0.0, 0.0, 1.5 * limit));
+        assert!(bounds.check(&model, &carried, &state, &params).is_ok());
+        // And when a collider moved that fast (it may have thrown the cloth).
+        let pushed = StepParams {
+            collider_speed: 1.5 * limit,
+            ..params
+        };
+        assert!(bounds.check(&model, &fast, &state, &pushed).is_ok());
+        // A cloth without pins falls as fast as gravity makes it.
+        let free = ClothBuilder::lab().with_pins([]).build().unwrap();
+        assert_eq!(bounds.speed_bound(&free, &params, 0.0), None);
+        assert!(bounds.check(&free, &fast, &state, &params).is_ok());
+        // A bad factor is refused.
+        let bad = GuardBounds {
+            speed_factor: Some(f32::NAN),
+            ..bounds
+        };
+        assert!(bad.validate().is_err());
+        assert!(DivergenceReason::Speed.to_string().contains("flying apart"));
+    }
+
+    #[test]
+    fn the_speed_bound_leaves_the_lab_cloth_falling_onto_its_pins_alone() {
+        // Soft and heavy at the lab's step: the fastest swing the guard must
+        // let through, under the implicit method with its default bounds.
+        let (model, mut state) = lab();
+        let params = StepParams::LAB;
+        let mut backup = ClothState::default();
+        let mut ws = crate::solver::implicit::ImplicitWorkspace::default();
+        let method = crate::solver::implicit::ImplicitSolver::default();
+        let mut memory = GuardMemory::default();
+        for _ in 0..300 {
+            guarded_step(
+                &GuardBounds::default(),
+                GuardPolicy::Pause,
+                &mut memory,
+                &model,
+                &mut state,
+                &mut backup,
+                &params,
+                |s, p| Method::step(&method, &model, s, p, &[], &mut ws),
+            )
+            .unwrap();
+        }
+    }
+
+    #[test]
+    fn a_cloth_recovering_from_a_teleported_pin_may_move_fast_until_it_slows_down() {
+        let (model, rest) = lab();
+        let params = StepParams::LAB;
+        let bounds = GuardBounds::default();
+        let limit = bounds.speed_bound(&model, &params, 0.0).unwrap();
+        // A pin teleported 100 units away: the spring at it far beyond the
+        // stretch bound before the step.
+        let mut state = rest.clone();
+        let pin = model.pins()[0] as usize;
+        state.positions[pin].x += 100.0;
+        let (mut backup, mut memory) = (ClothState::default(), GuardMemory::default());
+        // A "step" that leaves the positions and sets every free speed.
+        let mut step_at = |state: &mut ClothState, memory: &mut GuardMemory, speed: f32| {
+            guarded_step(
+                &bounds,
+                GuardPolicy::Pause,
+                memory,
+                &model,
+                state,
+                &mut backup,
+                &params,
+                |s, _| {
+                    for (v, &pinned) in s.velocities.iter_mut().zip(model.pinned()) {
+                        if !pinned {
+                            *v = Vec3A::new(speed, 0.0, 0.0);
+                        }
+                    }
+                    Ok(StepReport::default())
+                },
+            )
+        };
+        assert!(step_at(&mut state, &mut memory, 2.0 * limit).is_ok());
+        assert!(memory.recovering);
+        // Pulled back within the bound, still fast: still recovering.
+        state.positions[pin] = rest.positions[pin];
+        assert!(step_at(&mut state, &mut memory, 2.0 * limit).is_ok());
+        assert!(memory.recovering);
+        // Slowed down: recovered; fast again is now a wreck.
+        assert!(step_at(&mut state, &mut memory, 0.5 * limit).is_ok());
+        assert!(!memory.recovering);
+        assert_eq!(
+            step_at(&mut state, &mut memory, 2.0 * limit),
+            Err(GuardError::Diverged {
+                reason: DivergenceReason::Speed,
+                halvings: 0
+            })
+        );
     }
 }

@@ -165,6 +165,11 @@ pub struct Measured {
     pub max_stretch: f32,
     /// Total mechanical energy (as [`energy`]).
     pub energy: f64,
+    /// Largest speed of a free vertex (0 for a cloth without free vertices).
+    pub max_free_speed: f32,
+    /// Largest speed of a pinned vertex (0 for a cloth without pins): how
+    /// fast whatever holds the cloth moves it.
+    pub max_pin_speed: f32,
 }
 
 /// The largest stretch and the total energy of `state` in one pass over its
@@ -179,13 +184,21 @@ pub fn measure(model: &ClothModel, state: &ClothState, params: &StepParams) -> O
     let g = params.gravity.as_dvec3();
     let mut finite = true;
     let mut energy = 0.0f64;
-    for ((&m, x), v) in model
+    let (mut free_speed, mut pin_speed) = (0.0f32, 0.0f32);
+    for (((&m, x), v), &pinned) in model
         .masses()
         .iter()
         .zip(&state.positions)
         .zip(&state.velocities)
+        .zip(model.pinned())
     {
         finite &= x.is_finite() & v.is_finite();
+        let speed = v.length_squared();
+        if pinned {
+            pin_speed = pin_speed.max(speed);
+        } else {
+            free_speed = free_speed.max(speed);
+        }
         let m = f64::from(m);
         energy += 0.5 * m * v.as_dvec3().length_squared() - m * g.dot(x.as_dvec3());
     }
@@ -198,6 +211,8 @@ pub fn measure(model: &ClothModel, state: &ClothState, params: &StepParams) -> O
     (!nan).then_some(Measured {
         max_stretch: worst,
         energy,
+        max_free_speed: free_speed.sqrt(),
+        max_pin_speed: pin_speed.sqrt(),
     })
 }
 

@@ -98,6 +98,13 @@ pub struct StepParams {
     /// the docs, as the engine room is).
     #[doc(hidden)]
     pub stencil: bool,
+    /// How fast the fastest collider moved over this step (its
+    /// displacement since the last step over `dt`; 0 for none or unknown):
+    /// what a collider can give the cloth, for the guard's speed bound
+    /// ([`GuardBounds::speed_bound`](super::guard::GuardBounds::speed_bound)).
+    /// The plugin sets it from [`ClothColliders`](crate::ecs::ClothColliders);
+    /// the methods do not read it.
+    pub collider_speed: f32,
 }
 
 impl StepParams {
@@ -111,6 +118,7 @@ impl StepParams {
         parallel: true,
         simd: super::engine::simd::Simd::Auto,
         stencil: true,
+        collider_speed: 0.0,
     };
 
     /// Checks every parameter; a solver calls this before it touches state.

@@ -493,3 +493,46 @@ fn an_unconverged_step_is_called_lagging_locked_or_oscillating_by_what_it_did() 
         Unconverged::Lagging
     );
 }
+
+/// Moves the entity with `Mover` by `Mover.0` each fixed step.
+#[derive(Component)]
+struct Mover(Vec3);
+
+fn move_movers(mut movers: Query<(&mut Transform, &Mover)>) {
+    for (mut t, m) in &mut movers {
+        t.translation += m.0;
+    }
+}
+
+#[test]
+fn the_colliders_speeds_are_measured_for_the_guard() {
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+        .add_systems(ClothSchedule, move_movers.in_set(ClothSystems::First));
+    app.world_mut().spawn((
+        Cloth::build(ClothBuilder::lab_grid(5)).unwrap(),
+        XpbdSolver::STIFF,
+        Transform::default(),
+    ));
+    // A sphere moving 0.5 m and a box 2 m per step; a still plane.
+    app.world_mut().spawn((
+        SphereCollider::new(1.0),
+        Transform::from_xyz(50.0, 0.0, 0.0),
+        Mover(Vec3::new(0.5, 0.0, 0.0)),
+    ));
+    app.world_mut().spawn((
+        CuboidCollider::new(Vec3::ONE),
+        Transform::from_xyz(-50.0, 0.0, 0.0),
+        Mover(Vec3::new(0.0, 0.0, 2.0)),
+    ));
+    app.world_mut().spawn((
+        PlaneCollider::default(),
+        Transform::from_xyz(0.0, -50.0, 0.0),
+    ));
+    run_steps(&mut app, 3);
+    let colliders = app.world().resource::<bevy_cloth::ClothColliders>();
+    let [spheres, shapes, _] = colliders.speeds;
+    assert!((spheres - 30.0).abs() < 0.01, "{spheres}");
+    assert!((shapes - 120.0).abs() < 0.01, "{shapes}");
+    assert_eq!(colliders.max_speed(), shapes);
+}
