@@ -93,7 +93,7 @@ fn main() -> ExitCode {
     };
     let controls = WindControls {
         speed: 9.0,
-        heading_degrees: 10.0,
+        heading_degrees: -10.0,
         turbulence: 0.4,
     };
     let mut app = common::windowed_app("bevy_cloth — flag", 1.0 / 60.0, screenshot);
@@ -165,15 +165,15 @@ fn setup(
         Pickable::IGNORE,
     ));
     options.method.insert(&mut flag);
-    // Avian boxes: one downwind that the flag beats against, two on the
-    // ground.
+    // Avian boxes: one downwind behind the flag (seen from the camera) that
+    // it beats against, two on the ground.
     let crate_material = materials.add(StandardMaterial {
         base_color: Color::srgb(0.55, 0.38, 0.22),
         perceptual_roughness: 0.9,
         ..default()
     });
     for (size, at) in [
-        (Vec3::new(2.0, 6.5, 2.0), Vec3::new(7.0, 3.25, 2.5)),
+        (Vec3::new(2.0, 6.5, 2.0), Vec3::new(7.0, 3.25, -2.5)),
         (Vec3::splat(1.5), Vec3::new(3.0, 0.75, -3.0)),
         (Vec3::new(3.0, 1.0, 2.0), Vec3::new(-4.0, 0.5, 2.0)),
     ] {
@@ -185,7 +185,8 @@ fn setup(
             Pickable::IGNORE,
         ));
     }
-    // The capsule to drag through the flag.
+    // The capsule to drag through the flag: upwind of the pole, in view, so
+    // its path through the flag is too.
     commands.spawn((
         Mesh3d(meshes.add(Capsule3d::new(0.6, 2.0))),
         MeshMaterial3d(materials.add(StandardMaterial {
@@ -193,7 +194,7 @@ fn setup(
             perceptual_roughness: 0.4,
             ..default()
         })),
-        Transform::from_xyz(4.0, 7.0, 4.0),
+        Transform::from_xyz(-2.5, 7.5, 0.0),
         Collider::capsule(0.6, 2.0),
         Draggable,
     ));
