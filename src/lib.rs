@@ -133,6 +133,16 @@
 //!   them by rest position) to other entities with an offset, attached,
 //!   detached and re-attached at run time.
 //!
+//! ## Character cloth
+//! - [`ClothSkin`] / [`CharacterClothPlugin`] ([`character`]): a cloth held
+//!   near an animated shape, per vertex: max distance from its skinned
+//!   position, a backstop sphere behind it along the skinned normal, and an
+//!   anim drive towards it (after the step, every method). The pose comes
+//!   from the game or from [`Skinning`]: linear blend skinning of a
+//!   [`SkinnedMesh`](bevy::mesh::skinning::SkinnedMesh)'s joints on the CPU,
+//!   with the cloth's pins on the skin. `stiff`'s tethers (its preset) keep
+//!   a cape from stretching whatever its mass.
+//!
 //! ## Wind and air
 //! - [`Wind`] (a resource: mean velocity, deterministic gusts) /
 //!   [`WindPlugin`]: per-triangle drag and lift ([`aero`]), coefficients per
@@ -272,6 +282,7 @@
 //!             else:   move pinned vertices to transform · rest position
 //!           attachments: vertices held by other entities → target · offset · rest
 //!                        (the pinned set follows attach/detach; a gone target releases)
+//!           ClothSkin: skinned pose from the joints (linear blend skinning); pins → pose
 //! Forces:   with a Wind resource, for each cloth: per-triangle drag and lift from the
 //!           velocity relative to the wind; v ← v + h·F/(m + h·c) (c: drag's damping)
 //! Step:     for each cloth, with its method (in parallel across cloths)
@@ -305,14 +316,15 @@
 //!           (Coulomb friction if the sphere has some); then planes, capsules, boxes,
 //!           and (feature avian) every avian Collider: out along the contact normal,
 //!           then friction takes ≤ μ·(normal impulse) from the tangential velocity
-//! SyncOut:  for each cloth: no method stepped it? status NoMethod (warn once);
+//! SyncOut:  ClothSkin: drive towards the pose, out of the backstop, within max distance;
+//!           for each cloth: no method stepped it? status NoMethod (warn once);
 //!           the guard's check again after collision (restore, stop);
 //!           send ClothDiverged for each rejected step and ClothNotConverged for
 //!           the first unconverged one; record max stretch and energy in ClothStats
 //! Last:     (user hook)
 //!
 //! PostUpdate (every frame, after transform propagation, set ClothFollowSystems):
-//!           pinned vertices follow their entity's transform as it is now
+//!           pinned vertices follow their entity's transform as it is now (not a ClothSkin's)
 //! ```
 //!
 //! When a cloth is inserted, a component hook places its rest shape at its
@@ -413,6 +425,7 @@
 pub mod aero;
 #[cfg(feature = "avian")]
 pub mod avian;
+pub mod character;
 pub mod collision;
 #[cfg(feature = "picking")]
 pub mod drag;
@@ -432,6 +445,7 @@ use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
+pub use character::{CharacterClothPlugin, ClothSkin, SkinConstraints, SkinPose, Skinning};
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
@@ -455,6 +469,9 @@ pub use solver::xpbd::XpbdSolver;
 /// Everything a game needs, in one import.
 pub mod prelude {
     pub use crate::ClothPlugins;
+    pub use crate::character::{
+        CharacterClothPlugin, ClothSkin, SkinConstraints, SkinPose, Skinning,
+    };
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
         ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,
@@ -500,6 +517,7 @@ pub mod prelude {
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 /// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
 /// | [`WindPlugin`] | Per-triangle air drag and lift in a gusty [`Wind`], while that resource exists. |
+/// | [`CharacterClothPlugin`] | Cloths with a [`ClothSkin`]: skinned to joint entities, pins on the skin, max distance, backstop and anim drive. |
 /// | `avian::AvianCollisionPlugin` | (feature `avian`) Resolves cloths against the game's avian3d `Collider`s, one-way. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
@@ -530,7 +548,8 @@ impl PluginGroup for ClothPlugins {
         let group = methods::add_method_plugins(group, self.schedule)
             .add(SphereCollisionPlugin::new(self.schedule))
             .add(ShapeCollisionPlugin::new(self.schedule))
-            .add(WindPlugin::new(self.schedule));
+            .add(WindPlugin::new(self.schedule))
+            .add(CharacterClothPlugin::new(self.schedule));
         #[cfg(feature = "avian")]
         let group = group.add(avian::AvianCollisionPlugin::new(self.schedule));
         group

@@ -227,7 +227,7 @@ fn apply_materials(mut cloths: Query<(Entity, &ClothMaterial, &mut Cloth, &mut C
 /// The global transform is computed here from the `Transform` hierarchy, not
 /// read from `GlobalTransform`, so a cloth spawned or moved since the last
 /// transform propagation is placed where it is now.
-fn place_and_pin(
+pub(crate) fn place_and_pin(
     time: Res<Time>,
     helper: TransformHelper,
     mut cloths: Query<(Entity, &mut Cloth)>,
@@ -277,10 +277,14 @@ type Moved = Or<(Changed<Transform>, Changed<GlobalTransform>)>;
 /// vertices of running cloths move to where their entity is now, so an
 /// anchor moved in `Update` is followed in the same frame rather than at the
 /// next fixed step. Positions only: the next fixed step gives them the
-/// velocity of any further motion.
+/// velocity of any further motion. A cloth with a
+/// [`ClothSkin`](crate::ClothSkin) has its pins on its skin instead.
 fn follow_anchors(
     helper: TransformHelper,
-    mut cloths: Query<(Entity, &mut Cloth, &ClothStats), Moved>,
+    mut cloths: Query<
+        (Entity, &mut Cloth, &ClothStats),
+        (Moved, Without<crate::character::ClothSkin>),
+    >,
 ) {
     for (entity, mut cloth, stats) in &mut cloths {
         if !cloth.initialized || !stats.is_running() || cloth.own_pins.is_empty() {
@@ -298,7 +302,7 @@ fn follow_anchors(
 /// state again after collision, which can move vertices too (a failure here
 /// restores the state from before the step and stops the cloth), records
 /// stretch and energy, and sends the [`ClothDiverged`] messages.
-fn guard_and_measure(
+pub(crate) fn guard_and_measure(
     (time, colliders): (Res<Time>, Res<super::ClothColliders>),
     mut cloths: Query<(
         Entity,

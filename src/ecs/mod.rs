@@ -34,7 +34,6 @@ macro_rules! scheduled_plugin {
         }
     };
 }
-#[cfg(feature = "avian")]
 pub(crate) use scheduled_plugin;
 
 /// Runs the closure `$f` on every item of the query `$q`: on the compute
@@ -80,6 +79,7 @@ pub use components::{
     Cloth, ClothGuard, ClothParams, ClothStateMut, ClothStats, ClothStatus, GuardAction,
 };
 pub use core::{ClothCorePlugin, ClothMethods, ClothSimulation};
+pub(crate) use core::{guard_and_measure, place_and_pin};
 pub use mesh_source::ClothFromMesh;
 pub use save::ClothSnapshot;
 pub use schedule::{ClothFollowSystems, ClothSchedule, ClothScheduleSystems, ClothSystems};

@@ -5,6 +5,7 @@ mod assignment;
 mod attach;
 #[cfg(feature = "avian")]
 mod avian;
+mod character;
 mod colliders;
 mod common;
 #[cfg(feature = "picking")]

@@ -1,0 +1,284 @@
+//! The character-cloth component and plugin: a cloth skinned to joint
+//! entities by linear blend skinning, held to its skinned pose.
+
+use bevy::ecs::schedule::common_conditions::any_with_component;
+use bevy::math::{Affine3A, Mat4, Vec3A};
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::mesh::{Mesh, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
+
+use super::{SkinConstraints, SkinError, SkinPose, apply_skin};
+use crate::ecs::{
+    Cloth, ClothCorePlugin, ClothSchedule, ClothStats, ClothSystems, guard_and_measure,
+    place_and_pin, scheduled_plugin,
+};
+use crate::model::ClothModel;
+
+/// A cloth held near an animated shape (see the [module docs](super)): its
+/// constraints, its skinned pose this step, and optionally the linear
+/// blend skinning that makes the pose from joint entities each step.
+///
+/// With [`skinning`](Self::skinning), [`CharacterClothPlugin`] computes
+/// [`pose`](Self::pose) every step from the joints' global transforms
+/// (before the step), moves the cloth's pinned vertices to their skinned
+/// positions (so a collar follows the body, and `stiff` moves it smoothly
+/// through its substeps), and after the step applies the constraints.
+/// Without it, the game writes `pose` itself (from its own animation), and
+/// the pins follow that. Either way the pins are on the skin, not where
+/// the entity's transform would put them.
+#[derive(Component, Clone, Debug)]
+pub struct ClothSkin {
+    /// Max distance, backstop and anim drive per vertex.
+    pub constraints: SkinConstraints,
+    /// The skinned pose of this step, one entry per cloth vertex.
+    pub pose: SkinPose,
+    /// The skinning that computes `pose`, if any.
+    pub skinning: Option<Skinning>,
+}
+
+impl ClothSkin {
+    /// Constraints to a pose the game sets.
+    pub fn new(constraints: SkinConstraints, pose: SkinPose) -> Self {
+        Self {
+            constraints,
+            pose,
+            skinning: None,
+        }
+    }
+
+    /// Constraints to the pose `skinning` computes each step.
+    pub fn skinned(constraints: SkinConstraints, skinning: Skinning) -> Self {
+        Self {
+            constraints,
+            pose: SkinPose::default(),
+            skinning: Some(skinning),
+        }
+    }
+}
+
+/// Linear blend skinning of a cloth's vertices, as Bevy's renderer skins a
+/// [`SkinnedMesh`]: a vertex's skinned position is
+/// `Σ wₖ · (Jₖ · Bₖ⁻¹) · p`, with `p` its bind-pose position, `Jₖ` the
+/// global transform of its joint `k` and `Bₖ⁻¹` that joint's inverse bind
+/// pose (its normal likewise, normalised), computed on the CPU for the
+/// cloth's vertices only.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skinning {
+    /// The joint entities.
+    pub joints: Vec<Entity>,
+    /// Each joint's inverse bind pose.
+    pub inverse_bindposes: Vec<Affine3A>,
+    /// Per cloth vertex: up to four (joint, weight) influences.
+    pub influences: Vec<[(u16, f32); 4]>,
+    /// Per cloth vertex: its bind-pose position and normal.
+    pub bind: Vec<(Vec3A, Vec3A)>,
+    joint_matrices: Vec<Affine3A>,
+}
+
+impl Skinning {
+    /// The skinning of a cloth built from `mesh` ([`ClothBuilder::from_mesh`](crate::model::ClothBuilder::from_mesh),
+    /// welded or not): each cloth vertex takes the joints, weights,
+    /// position and normal of the first mesh vertex that became it. The
+    /// mesh needs positions, normals, joint indices (`Uint16x4`) and joint
+    /// weights (`Float32x4`); a joint index past `skinned.joints` or a mesh
+    /// that does not match the cloth is a typed error.
+    pub fn from_mesh(
+        mesh: &Mesh,
+        skinned: &SkinnedMesh,
+        inverse_bindposes: &SkinnedMeshInverseBindposes,
+        model: &ClothModel,
+    ) -> Result<Self, SkinError> {
+        let attribute = |a| mesh.try_attribute_option(a).ok().flatten();
+        let (
+            Some(VertexAttributeValues::Float32x3(positions)),
+            Some(VertexAttributeValues::Float32x3(normals)),
+            Some(VertexAttributeValues::Uint16x4(joints)),
+            Some(VertexAttributeValues::Float32x4(weights)),
+        ) = (
+            attribute(Mesh::ATTRIBUTE_POSITION),
+            attribute(Mesh::ATTRIBUTE_NORMAL),
+            attribute(Mesh::ATTRIBUTE_JOINT_INDEX),
+            attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+        )
+        else {
+            return Err(SkinError::Mesh);
+        };
+        let n = model.vertex_count();
+        let mut influences = vec![[(0u16, 0.0f32); 4]; n];
+        let mut bind = vec![(Vec3A::ZERO, Vec3A::Z); n];
+        let mut seen = vec![false; n];
+        let count = positions.len();
+        if [normals.len(), joints.len(), weights.len()]
+            .iter()
+            .any(|&l| l != count)
+        {
+            return Err(SkinError::Mesh);
+        }
+        for j in 0..count {
+            let c = match model.welded_from() {
+                Some(map) => map.get(j).map(|&c| c as usize),
+                None => (j < n).then_some(j),
+            };
+            let Some(c) = c.filter(|&c| c < n && !seen[c]) else {
+                continue;
+            };
+            seen[c] = true;
+            if joints[j]
+                .iter()
+                .zip(weights[j])
+                .any(|(&k, w)| w != 0.0 && usize::from(k) >= skinned.joints.len())
+            {
+                return Err(SkinError::Joint);
+            }
+            influences[c] = std::array::from_fn(|k| (joints[j][k], weights[j][k]));
+            bind[c] = (
+                Vec3A::from_array(positions[j]),
+                Vec3A::from_array(normals[j]).normalize_or_zero(),
+            );
+        }
+        if seen.contains(&false) {
+            return Err(SkinError::Mesh);
+        }
+        if inverse_bindposes.len() < skinned.joints.len() {
+            return Err(SkinError::Joint);
+        }
+        Ok(Self {
+            joints: skinned.joints.clone(),
+            inverse_bindposes: inverse_bindposes
+                .iter()
+                .map(|m: &Mat4| Affine3A::from_mat4(*m))
+                .collect(),
+            influences,
+            bind,
+            joint_matrices: Vec::new(),
+        })
+    }
+
+    /// Skins every vertex into `pose` with the joints' global transforms
+    /// from `joint_global` (`None` for a joint without one: the skinning is
+    /// skipped and `false` returned).
+    pub fn pose(
+        &mut self,
+        joint_global: impl Fn(Entity) -> Option<Affine3A>,
+        pose: &mut SkinPose,
+    ) -> bool {
+        self.joint_matrices.clear();
+        for (&joint, inverse) in self.joints.iter().zip(&self.inverse_bindposes) {
+            let Some(global) = joint_global(joint) else {
+                return false;
+            };
+            self.joint_matrices.push(global * *inverse);
+        }
+        let n = self.bind.len();
+        pose.positions.resize(n, Vec3A::ZERO);
+        pose.normals.resize(n, Vec3A::Z);
+        let vertices = self.influences.iter().zip(&self.bind);
+        let out = pose.positions.iter_mut().zip(pose.normals.iter_mut());
+        for ((influences, &(p, normal)), (x, nrm)) in vertices.zip(out) {
+            let (mut sx, mut sn) = (Vec3A::ZERO, Vec3A::ZERO);
+            for &(k, w) in influences {
+                if w != 0.0 {
+                    let m = &self.joint_matrices[usize::from(k)];
+                    sx += w * m.transform_point3a(p);
+                    sn += w * m.transform_vector3a(normal);
+                }
+            }
+            *x = sx;
+            *nrm = sn.normalize_or(normal);
+        }
+        true
+    }
+}
+
+scheduled_plugin! {
+    /// Character cloth ([`ClothSkin`]): before the step, skins the cloths
+    /// that have a [`Skinning`] and moves their pins to their skinned
+    /// positions (in [`ClothSystems::SyncIn`], after the core's pins); after
+    /// it and the colliders (first in [`ClothSystems::SyncOut`], before the
+    /// guard's second check), holds every cloth with a `ClothSkin` to its
+    /// pose (max distance, backstop, anim drive), for every method.
+    CharacterClothPlugin
+}
+
+impl Plugin for CharacterClothPlugin {
+    fn build(&self, app: &mut App) {
+        ClothCorePlugin::new_interned(self.schedule).add_once(app);
+        app.add_systems(
+            ClothSchedule,
+            (
+                skin_cloths
+                    .in_set(ClothSystems::SyncIn)
+                    .after(place_and_pin),
+                // After every collider's projection (the Collide set), before
+                // the guard's second check.
+                hold_to_skin
+                    .in_set(ClothSystems::SyncOut)
+                    .before(guard_and_measure),
+            )
+                .run_if(any_with_component::<ClothSkin>),
+        );
+    }
+}
+
+/// Skins every cloth with a [`Skinning`], and moves the pins of every
+/// cloth with a pose to their skinned positions.
+fn skin_cloths(helper: TransformHelper, mut cloths: Query<(&mut Cloth, &mut ClothSkin)>) {
+    for (mut cloth, mut skin) in &mut cloths {
+        let ClothSkin { pose, skinning, .. } = &mut *skin;
+        if let Some(skinning) = skinning {
+            let global = |e| helper.compute_global_transform(e).ok().map(|g| g.affine());
+            if !skinning.pose(global, pose) {
+                continue;
+            }
+        }
+        let cloth = &mut *cloth;
+        if !cloth.initialized || pose.positions.len() != cloth.model.vertex_count() {
+            continue;
+        }
+        for &p in cloth.model.pins() {
+            let x = pose.positions[p as usize];
+            if x.is_finite() {
+                cloth.state.positions[p as usize] = x;
+            }
+        }
+    }
+}
+
+/// Holds every running cloth with a [`ClothSkin`] to its pose after the
+/// step; a skin that does not fit its cloth is skipped with a warning
+/// (once per entity).
+fn hold_to_skin(
+    time: Res<Time>,
+    mut cloths: Query<(Entity, &mut Cloth, &ClothSkin, &ClothStats)>,
+    mut warned: Local<Vec<Entity>>,
+) {
+    let dt = time.delta_secs();
+    for (entity, mut cloth, skin, stats) in &mut cloths {
+        if !cloth.initialized || !stats.is_running() {
+            continue;
+        }
+        let cloth = &mut *cloth;
+        match skin
+            .constraints
+            .validate(cloth.model.vertex_count(), &skin.pose)
+        {
+            Ok(()) => {
+                apply_skin(
+                    &cloth.model,
+                    &mut cloth.state,
+                    &skin.pose,
+                    &skin.constraints,
+                    dt,
+                );
+                // The state changed after the step's own check.
+                cloth.measured = None;
+            }
+            Err(error) if !warned.contains(&entity) => {
+                warn!("cloth {entity} is not held to its skin: {error}");
+                warned.push(entity);
+            }
+            Err(_) => {}
+        }
+    }
+}

@@ -1,0 +1,155 @@
+//! Issue O: a cloth skinned to joint entities (linear blend skinning on the
+//! CPU), its pins on the skin, held within its max distance and outside its
+//! backstop, under the plugin.
+
+use bevy::math::Mat4;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::mesh::{Mesh, Meshable, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy_cloth::character::SkinError;
+use bevy_cloth::prelude::*;
+
+use crate::common::*;
+
+/// A 2×2 m cape in the x–y plane (normal +z), 9×9 vertices, skinned to two
+/// joints: the shoulders (joint 0) at the top, blending to the hips
+/// (joint 1) at the hem.
+fn skinned_cape() -> Mesh {
+    let mut mesh = Plane3d::new(Vec3::Z, Vec2::splat(1.0))
+        .mesh()
+        .subdivisions(7)
+        .build();
+    let Some(VertexAttributeValues::Float32x3(positions)) =
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION).cloned()
+    else {
+        panic!("a plane has positions");
+    };
+    let joints: Vec<[u16; 4]> = positions.iter().map(|_| [0, 1, 0, 0]).collect();
+    let weights: Vec<[f32; 4]> = positions
+        .iter()
+        .map(|p| {
+            let hips = (1.0 - p[1]) / 2.0;
+            [1.0 - hips, hips, 0.0, 0.0]
+        })
+        .collect();
+    mesh.insert_attribute(
+        Mesh::ATTRIBUTE_JOINT_INDEX,
+        VertexAttributeValues::Uint16x4(joints),
+    );
+    mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights);
+    mesh
+}
+
+#[test]
+fn a_skinned_cape_follows_its_joints_pins_on_the_skin_within_its_max_distance() {
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+    let mesh = skinned_cape();
+    let model = ClothBuilder::from_mesh(&mesh)
+        .unwrap()
+        .with_material(ClothMaterial::COTTON)
+        .with_pins(mesh_vertices_where(&mesh, Mesh::ATTRIBUTE_POSITION, |p| p[1] > 0.99).unwrap())
+        .build()
+        .unwrap();
+    let world = app.world_mut();
+    let shoulders = world.spawn(Transform::default()).id();
+    let hips = world.spawn(Transform::default()).id();
+    // Bound at the identity: the inverse bind poses are identities.
+    let skinned = SkinnedMesh {
+        inverse_bindposes: Handle::default(),
+        joints: vec![shoulders, hips],
+    };
+    let bindposes = SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY; 2]);
+    let skinning = Skinning::from_mesh(&mesh, &skinned, &bindposes, &model).unwrap();
+    let rest: Vec<Vec3> = model.topology().rest_positions().to_vec();
+    let n = model.vertex_count();
+    // Free at the shoulders, 0.3 m at the hem; a backstop 2 cm behind.
+    let constraints = SkinConstraints::free(n)
+        .with_max_distance(|i| 0.3 * (1.0 - rest[i].y) / 2.0)
+        .with_backstop(20.0, |_| 0.02);
+    let cloth = world
+        .spawn((
+            Cloth::new(model.clone()),
+            XpbdSolver::STIFF,
+            ClothSkin::skinned(constraints.clone(), skinning),
+            Transform::default(),
+        ))
+        .id();
+    // The character walks along +x at 2 m/s and its hips swing.
+    for step in 0..120 {
+        let t = step as f32 / 60.0;
+        let w = app.world_mut();
+        w.get_mut::<Transform>(shoulders).unwrap().translation = Vec3::new(2.0 * t, 0.0, 0.0);
+        let mut hips_at = w.get_mut::<Transform>(hips).unwrap();
+        hips_at.translation = Vec3::new(2.0 * t, 0.0, 0.0);
+        hips_at.rotation = Quat::from_rotation_y(0.3 * (3.0 * t).sin());
+        run_steps(&mut app, 1);
+        let c = app.world().get::<Cloth>(cloth).unwrap();
+        let skin = app.world().get::<ClothSkin>(cloth).unwrap();
+        assert_eq!(skin.pose.positions.len(), n);
+        let vertices = c.state().positions.iter().zip(&skin.pose.positions);
+        for (i, ((&x, &s), r)) in vertices.zip(&rest).enumerate() {
+            if model.pinned()[i] {
+                // The collar is on the skin (shoulders only: weight 1).
+                assert!(
+                    (x - s).length() < 1e-5,
+                    "step {step}: pin {i} at {x}, skin {s}"
+                );
+                assert!((s.x - r.x - 2.0 * t).abs() < 1e-5);
+            } else {
+                let off = (x - s).length();
+                assert!(
+                    off <= constraints.max_distance[i] + 1e-4,
+                    "step {step}: {i} {off}"
+                );
+            }
+        }
+    }
+    let stats = app.world().get::<ClothStats>(cloth).unwrap();
+    assert!(stats.is_running(), "{:?}", stats.status);
+    // The cape came along: its hem is near x = 4 m at 2 s.
+    let c = app.world().get::<Cloth>(cloth).unwrap();
+    let hem = (0..n).filter(|&i| rest[i].y < -0.99);
+    let mean_x = hem.clone().map(|i| c.state().positions[i].x).sum::<f32>() / hem.count() as f32;
+    assert!((mean_x - 4.0 * 119.0 / 120.0).abs() < 0.35, "{mean_x}");
+}
+
+#[test]
+fn a_mesh_without_skin_or_a_skin_of_another_size_is_a_typed_answer() {
+    let plain = Plane3d::new(Vec3::Z, Vec2::splat(1.0))
+        .mesh()
+        .subdivisions(3)
+        .build();
+    let model = ClothBuilder::from_mesh(&plain).unwrap().build().unwrap();
+    let skinned = SkinnedMesh::default();
+    let bindposes = SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY]);
+    assert_eq!(
+        Skinning::from_mesh(&plain, &skinned, &bindposes, &model),
+        Err(SkinError::Mesh)
+    );
+    // Joints past the skinned mesh's.
+    let mesh = skinned_cape();
+    let model = ClothBuilder::from_mesh(&mesh).unwrap().build().unwrap();
+    let one = SkinnedMesh {
+        inverse_bindposes: Handle::default(),
+        joints: vec![Entity::PLACEHOLDER],
+    };
+    assert_eq!(
+        Skinning::from_mesh(&mesh, &one, &bindposes, &model),
+        Err(SkinError::Joint)
+    );
+    // Constraints for another cloth: skipped with a warning, the cloth runs.
+    let mut app = app();
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth::new(model.clone()),
+            XpbdSolver::STIFF,
+            ClothSkin::new(SkinConstraints::free(3), SkinPose::default()),
+            Transform::default(),
+        ))
+        .id();
+    run_steps(&mut app, 5);
+    let stats = app.world().get::<ClothStats>(cloth).unwrap();
+    assert!(stats.is_running());
+}
