@@ -279,7 +279,7 @@ fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
             let b = ClothBuilder::lab_grid(o.n)
                 .with_pins([0, o.n.saturating_sub(1) as u32])
                 .with_total_mass(o.mass.unwrap_or(441.0));
-            (b, ClothParams::default(), LAB_DT)
+            (b, ClothParams::LAB, LAB_DT)
         }
         Scene::Assignment => {
             let mut b = ClothBuilder::assignment(o.rows, o.cols);

@@ -50,7 +50,7 @@ fn scenes() -> [ClothScene; 2] {
         ClothScene {
             label: "Lab (faithful)",
             about: "the Unity lab's cloth: k = 8000, Chebyshev 32",
-            params: ClothParams::default(),
+            params: ClothParams::LAB,
             method: preset("chebyshev"),
         },
         ClothScene {

@@ -246,22 +246,24 @@ impl Cloth {
 }
 
 /// Physical parameters of a cloth. The time step is the schedule's
-/// (`Time<Fixed>` in `FixedUpdate`). Defaults are the lab's.
+/// (`Time<Fixed>` in `FixedUpdate`). Defaults are the lab's, with its
+/// damping given per second ([`ClothParams::LAB`] is the lab's exactly).
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct ClothParams {
     /// Spring stiffness per kind (the lab: 8000 for all).
     pub stiffness: SpringStiffness,
-    /// Velocity multiplier per step, in `[0, 1]` (the lab: 0.99), unless
-    /// [`damping_per_second`](Self::damping_per_second) is set. Per step, a
-    /// cloth settles at a different rate at 30 and 60 Hz; the lab's value
-    /// is kept per step for fidelity.
+    /// Velocity multiplier per step, in `[0, 1]` (the lab: 0.99), used when
+    /// [`damping_per_second`](Self::damping_per_second) is `None` (as in
+    /// [`ClothParams::LAB`], for fidelity to the lab). Per step, a cloth
+    /// settles at a different rate at 30 and 60 Hz.
     pub damping: f32,
     /// Velocity multiplier per second, in `[0, 1]`: when set, each step of
     /// `dt` seconds multiplies the velocities by `damping_per_second^dt`
     /// (so the cloth settles at the same rate at any step), and
-    /// [`damping`](Self::damping) is unused. `None` (the default) keeps the
-    /// per-step factor. The lab's 0.99 at 30 Hz is about 0.74 per second.
+    /// [`damping`](Self::damping) is unused. The default,
+    /// [`DAMPING_PER_SECOND`](Self::DAMPING_PER_SECOND), is the lab's 0.99
+    /// per step at 60 Hz made a rate; `None` uses the per-step factor.
     pub damping_per_second: Option<f32>,
     /// Gravitational acceleration (the lab: `(0, −9.8, 0)`).
     pub gravity: Vec3,
@@ -276,20 +278,38 @@ pub struct ClothParams {
 }
 
 impl Default for ClothParams {
+    /// The lab's parameters ([`ClothParams::LAB`]) with its damping given
+    /// per second ([`DAMPING_PER_SECOND`](Self::DAMPING_PER_SECOND)), so a
+    /// cloth settles alike at 30, 60 or 240 Hz.
     fn default() -> Self {
-        let lab = StepParams::LAB;
         Self {
-            stiffness: lab.stiffness,
-            damping: lab.damping,
-            damping_per_second: None,
-            gravity: lab.gravity,
-            particle_radius: 0.0,
-            parallel: lab.parallel,
+            damping_per_second: Some(Self::DAMPING_PER_SECOND),
+            ..Self::LAB
         }
     }
 }
 
 impl ClothParams {
+    /// The lab's parameters as its specification gives them: `k = 8000`,
+    /// gravity `(0, −9.8, 0)`, and its damping of 0.99 *per step*
+    /// (`damping_per_second: None`), bitwise the solver's
+    /// [`StepParams::LAB`] at the lab's step. The lab example's faithful
+    /// scene and the headless example's lab use it.
+    pub const LAB: Self = Self {
+        stiffness: StepParams::LAB.stiffness,
+        damping: StepParams::LAB.damping,
+        damping_per_second: None,
+        gravity: StepParams::LAB.gravity,
+        particle_radius: 0.0,
+        parallel: StepParams::LAB.parallel,
+    };
+
+    /// The default damping per second: the lab's 0.99 per step at a game's
+    /// 60 Hz (`0.99⁶⁰ ≈ 0.547`), rounded, so a game's cloth at 60 Hz damps
+    /// as the lab's factor did there (at the lab's own 30 Hz that factor
+    /// is `0.99³⁰ ≈ 0.74` per second).
+    pub const DAMPING_PER_SECOND: f32 = 0.55;
+
     /// The solver parameters for a step of `dt` seconds.
     pub fn step_params(&self, dt: f64) -> StepParams {
         StepParams {
@@ -330,9 +350,11 @@ impl ClothParams {
         self
     }
 
-    /// These parameters with another damping.
+    /// These parameters with another damping per step (and no damping per
+    /// second).
     pub fn with_damping(mut self, damping: f32) -> Self {
         self.damping = damping;
+        self.damping_per_second = None;
         self
     }
 

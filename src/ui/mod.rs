@@ -532,7 +532,22 @@ fn params_ui(
             }
         }
     }
-    linear_value(ui, &mut p.damping, d.damping, 0.0..=1.0, 0.001, "damping");
+    // Damping as the cloth has it: per second (the default) or per step
+    // (the lab's).
+    match &mut p.damping_per_second {
+        Some(rate) => {
+            let default = d.damping_per_second.unwrap_or(*rate);
+            linear_value(ui, rate, default, 0.0..=1.0, 0.001, "damping per second");
+        }
+        None => linear_value(
+            ui,
+            &mut p.damping,
+            d.damping,
+            0.0..=1.0,
+            0.001,
+            "damping per step",
+        ),
+    }
     linear_value(
         ui,
         &mut p.gravity.y,

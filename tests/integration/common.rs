@@ -52,7 +52,7 @@ pub fn run_steps(app: &mut App, n: u64) {
 pub fn spawn_lab(app: &mut App, method: impl Bundle) -> Entity {
     let cloth = Cloth::build(ClothBuilder::lab()).unwrap();
     app.world_mut()
-        .spawn((cloth, method, Transform::default()))
+        .spawn((cloth, method, ClothParams::LAB, Transform::default()))
         .id()
 }
 

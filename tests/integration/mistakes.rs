@@ -439,12 +439,20 @@ fn a_damping_per_second_settles_alike_at_any_rate_and_a_bad_one_is_refused() {
             per_second(dt)
         );
     }
-    let lab = ClothParams::default();
+    let lab = ClothParams::LAB;
     assert_eq!(
         lab.step_params(1.0 / 60.0).damping,
         0.99,
         "the lab's stays per step"
     );
+    // The default is per second: 0.55 a second at any rate, about the
+    // lab's 0.99 per step at 60 Hz.
+    let default = ClothParams::default();
+    assert_eq!(default.damping_per_second, Some(0.55));
+    let at_60 = default.step_params(1.0 / 60.0).damping;
+    assert!((at_60 - 0.99).abs() < 2e-4, "{at_60}");
+    // Setting a per-step damping turns the rate off.
+    assert_eq!(default.with_damping(1.0).step_params(0.01).damping, 1.0);
     for bad in [f32::NAN, 1.5, -0.1] {
         let mut app = app();
         let cloth = spawn_lab(&mut app, ImplicitSolver::chebyshev(32, 0.995));

@@ -289,7 +289,7 @@ fn lab_app(cloths: Option<usize>, single_threaded: bool) -> App {
         for c in 0..cloths {
             app.world_mut().spawn((
                 Cloth::new(model.clone()),
-                ClothParams::default(),
+                ClothParams::LAB,
                 ImplicitSolver::chebyshev(32, 0.995),
                 Transform::from_xyz(12.0 * c as f32, 0.0, 0.0),
             ));
