@@ -445,7 +445,9 @@ use bevy::ecs::intern::Interned;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
-pub use character::{CharacterClothPlugin, ClothSkin, SkinConstraints, SkinPose, Skinning};
+pub use character::{
+    CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
+};
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
@@ -470,7 +472,7 @@ pub use solver::xpbd::XpbdSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::character::{
-        CharacterClothPlugin, ClothSkin, SkinConstraints, SkinPose, Skinning,
+        CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
     };
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,

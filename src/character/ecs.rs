@@ -8,7 +8,8 @@ use bevy::mesh::{Mesh, VertexAttributeValues};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use super::{SkinConstraints, SkinError, SkinPose, apply_skin};
+use super::inertia::{ClothInertia, carry_with_anchor};
+use super::{SkinConstraints, SkinError, SkinPose, SkinTethers, apply_skin};
 use crate::ecs::{
     Cloth, ClothCorePlugin, ClothSchedule, ClothStats, ClothSystems, guard_and_measure,
     place_and_pin, scheduled_plugin,
@@ -35,6 +36,7 @@ pub struct ClothSkin {
     pub pose: SkinPose,
     /// The skinning that computes `pose`, if any.
     pub skinning: Option<Skinning>,
+    tethers: SkinTethers,
 }
 
 impl ClothSkin {
@@ -44,6 +46,7 @@ impl ClothSkin {
             constraints,
             pose,
             skinning: None,
+            tethers: SkinTethers::default(),
         }
     }
 
@@ -53,6 +56,7 @@ impl ClothSkin {
             constraints,
             pose: SkinPose::default(),
             skinning: Some(skinning),
+            tethers: SkinTethers::default(),
         }
     }
 }
@@ -192,9 +196,11 @@ impl Skinning {
 }
 
 scheduled_plugin! {
-    /// Character cloth ([`ClothSkin`]): before the step, skins the cloths
-    /// that have a [`Skinning`] and moves their pins to their skinned
-    /// positions (in [`ClothSystems::SyncIn`], after the core's pins); after
+    /// Character cloth ([`ClothSkin`], [`ClothInertia`]): before the step,
+    /// skins the cloths that have a [`Skinning`] and moves their pins to
+    /// their skinned positions (in [`ClothSystems::SyncIn`], after the
+    /// core's pins), then carries each cloth with a [`ClothInertia`] by its
+    /// share of its anchor's motion (or with a teleported anchor); after
     /// it and the colliders (first in [`ClothSystems::SyncOut`], before the
     /// guard's second check), holds every cloth with a `ClothSkin` to its
     /// pose (max distance, backstop, anim drive), for every method.
@@ -218,12 +224,27 @@ impl Plugin for CharacterClothPlugin {
             )
                 .run_if(any_with_component::<ClothSkin>),
         );
+        app.add_systems(
+            ClothSchedule,
+            // Once the pins are where their entity or skin puts them.
+            carry_with_anchor
+                .in_set(ClothSystems::SyncIn)
+                .after(place_and_pin)
+                .after(skin_cloths)
+                .run_if(any_with_component::<ClothInertia>),
+        );
     }
 }
 
 /// Skins every cloth with a [`Skinning`], and moves the pins of every
-/// cloth with a pose to their skinned positions.
-fn skin_cloths(helper: TransformHelper, mut cloths: Query<(&mut Cloth, &mut ClothSkin)>) {
+/// cloth with a pose to their skinned positions, with the velocity of that
+/// move.
+pub(super) fn skin_cloths(
+    time: Res<Time>,
+    helper: TransformHelper,
+    mut cloths: Query<(&mut Cloth, &mut ClothSkin)>,
+) {
+    let dt = time.delta_secs();
     for (mut cloth, mut skin) in &mut cloths {
         let ClothSkin { pose, skinning, .. } = &mut *skin;
         if let Some(skinning) = skinning {
@@ -237,9 +258,12 @@ fn skin_cloths(helper: TransformHelper, mut cloths: Query<(&mut Cloth, &mut Clot
             continue;
         }
         for &p in cloth.model.pins() {
-            let x = pose.positions[p as usize];
+            let (p, x) = (p as usize, pose.positions[p as usize]);
             if x.is_finite() {
-                cloth.state.positions[p as usize] = x;
+                if dt > 0.0 {
+                    cloth.state.velocities[p] = (x - cloth.state.positions[p]) / dt;
+                }
+                cloth.state.positions[p] = x;
             }
         }
     }
@@ -250,15 +274,16 @@ fn skin_cloths(helper: TransformHelper, mut cloths: Query<(&mut Cloth, &mut Clot
 /// (once per entity).
 fn hold_to_skin(
     time: Res<Time>,
-    mut cloths: Query<(Entity, &mut Cloth, &ClothSkin, &ClothStats)>,
+    mut cloths: Query<(Entity, &mut Cloth, &mut ClothSkin, &ClothStats)>,
     mut warned: Local<Vec<Entity>>,
 ) {
     let dt = time.delta_secs();
-    for (entity, mut cloth, skin, stats) in &mut cloths {
+    for (entity, mut cloth, mut skin, stats) in &mut cloths {
         if !cloth.initialized || !stats.is_running() {
             continue;
         }
         let cloth = &mut *cloth;
+        let skin = &mut *skin;
         match skin
             .constraints
             .validate(cloth.model.vertex_count(), &skin.pose)
@@ -269,6 +294,7 @@ fn hold_to_skin(
                     &mut cloth.state,
                     &skin.pose,
                     &skin.constraints,
+                    &mut skin.tethers,
                     dt,
                 );
                 // The state changed after the step's own check.

@@ -16,18 +16,31 @@
 //!   it hangs on (`∞` for none; a large `R` makes it a plane);
 //! - **anim drive** `a` (per second, one per cloth): each step moves the
 //!   vertex `1 − (1 − a)^dt` of the way to its skinned position, for cloth
-//!   that should keep its animated shape (0: none, 1: at once).
+//!   that should keep its animated shape (0: none, 1: at once);
+//! - **tethers** (long-range attachments, Kim, Chentanez and Müller-Fischer
+//!   2012) with a scale `s ≥ 1` (one per cloth): each free vertex stays
+//!   within `s` times its rest distance of its nearest pin, whatever the
+//!   method, so a cape hanging from its collar does not stretch under its
+//!   own weight. The rest distance is the shortest path along the springs
+//!   (or the straight line where that is at most a tenth shorter, on a flat
+//!   cloth), never shorter than what the cloth can reach without stretching:
+//!   a Euclidean distance would let a curved cape (a skirt round the hips)
+//!   be pulled taut across its curve, and a geodesic one never does.
 //!
 //! [`apply_skin`] applies them after a method's step, like a collider's
 //! projection: positions are moved, and velocities change by the same
-//! displacement over `dt`, in the order drive, backstop, max distance (the
-//! last holds whatever the others did).
+//! displacement over `dt`, in the order drive, tethers, backstop, max
+//! distance (the last holds whatever the others did).
+//!
+//! [`ClothInertia`] says how much of its anchor's motion a cloth feels and
+//! moves it rigidly when the anchor is teleported ([`inertia`]).
 
 use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use thiserror::Error;
 
 use crate::model::{ClothModel, ClothState};
+use crate::solver::xpbd::tethers::{Tethers, hold};
 
 /// Where the animation puts each cloth vertex this step: its skinned
 /// position and unit normal, world space, one per cloth vertex.
@@ -55,6 +68,9 @@ pub struct SkinConstraints {
     /// Anim drive: the share of the way to its skinned position a vertex
     /// moves per second, in `[0, 1]`.
     pub drive: f32,
+    /// Tethers' scale over each vertex's rest distance to its nearest pin,
+    /// at least 1 (`f32::INFINITY`: no tethers).
+    pub tether_scale: f32,
 }
 
 impl SkinConstraints {
@@ -65,6 +81,7 @@ impl SkinConstraints {
             backstop_distance: vec![f32::INFINITY; vertices],
             backstop_radius: 1.0,
             drive: 0.0,
+            tether_scale: f32::INFINITY,
         }
     }
 
@@ -96,9 +113,18 @@ impl SkinConstraints {
         self
     }
 
+    /// Tethers each free vertex to its nearest pin at `scale` (at least 1)
+    /// times its rest distance.
+    #[must_use]
+    pub fn with_tethers(mut self, scale: f32) -> Self {
+        self.tether_scale = scale;
+        self
+    }
+
     /// Checks the constraints against a cloth of `vertices` vertices and a
     /// pose: lengths, and values (distances not NaN nor negative, the
-    /// radius positive and finite, the drive in `[0, 1]`).
+    /// radius positive and finite, the drive in `[0, 1]`, the tether scale
+    /// at least 1).
     pub fn validate(&self, vertices: usize, pose: &SkinPose) -> Result<(), SkinError> {
         for got in [
             self.max_distance.len(),
@@ -123,6 +149,9 @@ impl SkinConstraints {
         }
         if !(0.0..=1.0).contains(&self.drive) {
             return Err(SkinError::Drive(self.drive));
+        }
+        if !(self.tether_scale >= 1.0) {
+            return Err(SkinError::Tether(self.tether_scale));
         }
         if !(pose.positions.iter().all(|p| p.is_finite())
             && pose.normals.iter().all(|n| n.is_finite()))
@@ -153,6 +182,17 @@ pub enum SkinError {
     /// The drive is not in `[0, 1]`.
     #[error("the anim drive {0} is not in [0, 1]")]
     Drive(f32),
+    /// The tether scale is below 1 or NaN.
+    #[error("the tether scale {0} is below 1 or NaN")]
+    Tether(f32),
+    /// A velocity or acceleration scale of [`ClothInertia`] is not in
+    /// `[0, 1]`.
+    #[error("an inertia scale {0} is not in [0, 1]")]
+    Scale(f32),
+    /// The teleport distance of [`ClothInertia`] is not positive (or is
+    /// NaN).
+    #[error("the teleport distance {0} is not positive")]
+    Teleport(f32),
     /// A skinned position or normal is not finite.
     #[error("a skinned position or normal is not finite")]
     Pose,
@@ -169,21 +209,44 @@ pub enum SkinError {
     Joint,
 }
 
+/// The tethers' rest distances of one cloth, found once per topology and
+/// set of pins and kept between steps (Dijkstra from every pin at once is
+/// the one costly part of [`apply_skin`]).
+#[derive(Clone, Debug, Default)]
+pub struct SkinTethers {
+    tethers: Tethers,
+    /// The pins' positions this step, by their place among the pins.
+    anchors: Vec<Vec3A>,
+}
+
 /// Applies `constraints` to `state` after a step of `dt` seconds (see the
 /// [module docs](self)); pinned vertices are left alone. Returns how many
-/// vertices a backstop or max distance moved. Call
+/// vertices a tether, backstop or max distance moved. Call
 /// [`SkinConstraints::validate`] first: lists of other lengths are cut to
-/// the shortest.
+/// the shortest. `tethers` keeps the tethers' rest distances between calls
+/// (one per cloth).
 pub fn apply_skin(
     model: &ClothModel,
     state: &mut ClothState,
     pose: &SkinPose,
     constraints: &SkinConstraints,
+    tethers: &mut SkinTethers,
     dt: f32,
 ) -> usize {
     if dt <= 0.0 {
         return 0;
     }
+    let scale = constraints.tether_scale;
+    let SkinTethers { tethers, anchors } = tethers;
+    anchors.clear();
+    let ties: &[(u32, f32)] = if scale.is_finite() && !model.pins().is_empty() {
+        tethers.update(model);
+        // The pins are not moved here: read them before the loop.
+        anchors.extend(model.pins().iter().map(|&p| state.positions[p as usize]));
+        &tethers.ties
+    } else {
+        &[]
+    };
     let inv_dt = 1.0 / dt;
     let pull = 1.0 - (1.0 - constraints.drive).powf(dt);
     let radius = constraints.backstop_radius;
@@ -201,7 +264,7 @@ pub fn apply_skin(
                 .iter()
                 .zip(&constraints.backstop_distance),
         );
-    for ((((x, v), &pinned), (&skin, &normal)), (&max, &backstop)) in vertices {
+    for (i, ((((x, v), &pinned), (&skin, &normal)), (&max, &backstop))) in vertices.enumerate() {
         if pinned {
             continue;
         }
@@ -210,6 +273,13 @@ pub fn apply_skin(
             *x += pull * (skin - *x);
         }
         let mut moved = false;
+        if let Some(&(place, rest)) = ties.get(i)
+            && rest.is_finite()
+        {
+            let before = *x;
+            hold(x, anchors[place as usize], rest * scale);
+            moved |= *x != before;
+        }
         if backstop.is_finite() {
             let centre = skin - (backstop + radius) * normal.normalize_or_zero();
             let d = *x - centre;
@@ -235,7 +305,9 @@ pub fn apply_skin(
 }
 
 mod ecs;
+pub mod inertia;
 pub use ecs::{CharacterClothPlugin, ClothSkin, Skinning};
+pub use inertia::ClothInertia;
 
 #[cfg(test)]
 mod tests;

@@ -5,20 +5,25 @@ use crate::model::ClothBuilder;
 use crate::solver::xpbd::{XpbdSolver, XpbdWorkspace};
 use crate::solver::{Method, StepParams};
 
-/// A 2 m cape of 1.5 kg in the x–y plane, its top row pinned, and its rest
-/// shape as the skinned pose (normals +z).
-fn cape(n: usize) -> (ClothModel, ClothState, SkinPose) {
-    let model = ClothBuilder::grid(
+/// A 2 m square cloth of `mass` kg in the x–y plane, its top row pinned.
+fn cape_model(n: usize, mass: f32) -> ClothModel {
+    ClothBuilder::grid(
         n,
         n,
         Vec3::new(-1.0, 0.0, 0.0),
-        Vec3::new(2.0, 0.0, 0.0),
-        Vec3::new(0.0, -2.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(-1.0, -2.0, 0.0),
     )
-    .with_masses(vec![1.5 / (n * n) as f32; n * n])
+    .with_masses(vec![mass / (n * n) as f32; n * n])
     .with_pins(0..n as u32)
     .build()
-    .unwrap();
+    .unwrap()
+}
+
+/// A 2 m cape of 1.5 kg in the x–y plane, its top row pinned, and its rest
+/// shape as the skinned pose (normals +z).
+fn cape(n: usize) -> (ClothModel, ClothState, SkinPose) {
+    let model = cape_model(n, 1.5);
     let state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     let pose = SkinPose {
         positions: state.positions.clone(),
@@ -38,7 +43,14 @@ fn a_max_distance_of_zero_follows_the_skin_and_its_velocity_says_so() {
     let c = SkinConstraints::free(n).with_max_distance(|_| 0.0);
     c.validate(n, &pose).unwrap();
     let before = state.clone();
-    let held = apply_skin(&model, &mut state, &pose, &c, 0.1);
+    let held = apply_skin(
+        &model,
+        &mut state,
+        &pose,
+        &c,
+        &mut SkinTethers::default(),
+        0.1,
+    );
     assert_eq!(held, n - 4);
     for i in 0..n {
         if model.pinned()[i] {
@@ -59,7 +71,14 @@ fn a_backstop_pushes_a_vertex_out_from_behind_the_skin_and_leaves_one_in_front()
     let (behind, front) = (5, 6);
     state.positions[behind].z = -0.2;
     state.positions[front].z = 0.2;
-    let held = apply_skin(&model, &mut state, &pose, &c, 1.0 / 60.0);
+    let held = apply_skin(
+        &model,
+        &mut state,
+        &pose,
+        &c,
+        &mut SkinTethers::default(),
+        1.0 / 60.0,
+    );
     assert_eq!(held, 1);
     assert!(
         (state.positions[behind].z + 0.05).abs() < 1e-3,
@@ -69,7 +88,17 @@ fn a_backstop_pushes_a_vertex_out_from_behind_the_skin_and_leaves_one_in_front()
     assert_eq!(state.positions[front].z, 0.2);
     // Just behind the skin but in front of the backstop: free.
     state.positions[front].z = -0.03;
-    assert_eq!(apply_skin(&model, &mut state, &pose, &c, 1.0 / 60.0), 0);
+    assert_eq!(
+        apply_skin(
+            &model,
+            &mut state,
+            &pose,
+            &c,
+            &mut SkinTethers::default(),
+            1.0 / 60.0
+        ),
+        0
+    );
 }
 
 #[test]
@@ -82,7 +111,14 @@ fn the_anim_drive_closes_its_share_of_the_gap_per_second_at_any_rate() {
         }
         let c = SkinConstraints::free(n).with_drive(0.75);
         for _ in 0..steps {
-            apply_skin(&model, &mut state, &pose, &c, 1.0 / steps as f32);
+            apply_skin(
+                &model,
+                &mut state,
+                &pose,
+                &c,
+                &mut SkinTethers::default(),
+                1.0 / steps as f32,
+            );
         }
         // A quarter of the gap is left after one second.
         let free = (0..n).find(|&i| !model.pinned()[i]).unwrap();
@@ -113,6 +149,17 @@ fn bad_constraints_are_typed_errors() {
     assert_eq!(
         ok.clone().with_drive(1.5).validate(n, &pose),
         Err(SkinError::Drive(1.5))
+    );
+    assert_eq!(
+        ok.clone().with_tethers(0.9).validate(n, &pose),
+        Err(SkinError::Tether(0.9))
+    );
+    assert_eq!(
+        ok.clone()
+            .with_tethers(f32::NAN)
+            .validate(n, &pose)
+            .is_err(),
+        true
     );
     let mut bad_pose = pose.clone();
     bad_pose.normals[2] = Vec3A::NAN;
@@ -149,7 +196,14 @@ fn a_cape_swinging_under_stiff_keeps_within_its_max_distance_and_behind_nothing(
         method
             .step(&model, &mut state, &params, &[], &mut ws)
             .unwrap();
-        apply_skin(&model, &mut state, &pose, &c, params.dt as f32);
+        apply_skin(
+            &model,
+            &mut state,
+            &pose,
+            &c,
+            &mut SkinTethers::default(),
+            params.dt as f32,
+        );
         for i in 0..n {
             let off = (state.positions[i] - pose.positions[i]).length();
             assert!(
@@ -163,4 +217,235 @@ fn a_cape_swinging_under_stiff_keeps_within_its_max_distance_and_behind_nothing(
     // within the max distance): nothing went further back.
     assert!(worst <= 0.06, "{worst}");
     assert!(state.is_finite());
+}
+
+#[test]
+fn tethers_hold_a_heavy_cape_to_its_length_whatever_the_method() {
+    // A 2 m cape of 15 kg of soft springs under the lab's Chebyshev method
+    // stretches far beyond its length; with tethers at 1.02 no vertex is
+    // further from its pin than 1.02 times its rest distance, and the cape
+    // hangs within 2 % of 2 m.
+    use crate::solver::implicit::{ImplicitSolver, ImplicitWorkspace};
+    let (_, state, pose) = cape(12);
+    let model = cape_model(12, 15.0);
+    let n = model.vertex_count();
+    let params = StepParams {
+        dt: 1.0 / 60.0,
+        stiffness: crate::solver::SpringStiffness::uniform(500.0),
+        ..StepParams::LAB
+    };
+    let hang = |tethered: bool| {
+        let mut state = state.clone();
+        let c = SkinConstraints::free(n);
+        let c = if tethered { c.with_tethers(1.02) } else { c };
+        let mut tethers = SkinTethers::default();
+        let mut ws = ImplicitWorkspace::default();
+        let method = ImplicitSolver::chebyshev(32, 0.995);
+        for _ in 0..300 {
+            method
+                .step(&model, &mut state, &params, &[], &mut ws)
+                .unwrap();
+            apply_skin(
+                &model,
+                &mut state,
+                &pose,
+                &c,
+                &mut tethers,
+                params.dt as f32,
+            );
+        }
+        assert!(state.is_finite());
+        -state.positions.iter().map(|p| p.y).fold(0.0, f32::min)
+    };
+    let (loose, held) = (hang(false), hang(true));
+    assert!(loose > 2.1, "without tethers the cape stretches: {loose}");
+    assert!((2.0 - 1e-3..=2.04 + 1e-4).contains(&held), "{held}");
+}
+
+#[test]
+fn a_tether_reaches_round_a_curve_not_across_it() {
+    // A half-cylinder (a skirt's front) pinned along its top edge: the
+    // hem's tether is the path down the cloth, so a rest shape passes
+    // untouched (a Euclidean tether to a pin across the curve would pull
+    // it in).
+    let (cols, rows) = (9, 6);
+    let mut positions = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            let a = std::f32::consts::PI * c as f32 / (cols - 1) as f32;
+            positions.push(Vec3::new(a.cos(), -0.2 * r as f32, a.sin()));
+        }
+    }
+    let mut indices = Vec::new();
+    for r in 0..rows - 1 {
+        for c in 0..cols - 1 {
+            let i = (r * cols + c) as u32;
+            let w = cols as u32;
+            indices.extend([i, i + w, i + 1, i + 1, i + w, i + w + 1]);
+        }
+    }
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .with_pins(0..cols as u32)
+        .build()
+        .unwrap();
+    let n = model.vertex_count();
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let pose = SkinPose {
+        positions: state.positions.clone(),
+        normals: vec![Vec3A::Y; n],
+    };
+    let c = SkinConstraints::free(n).with_tethers(1.0);
+    let before = state.clone();
+    let held = apply_skin(
+        &model,
+        &mut state,
+        &pose,
+        &c,
+        &mut SkinTethers::default(),
+        0.01,
+    );
+    assert_eq!(held, 0);
+    assert_eq!(state, before);
+}
+
+mod inertia {
+    use bevy::math::{Affine3A, Quat, Vec3, Vec3A};
+
+    use super::cape_model;
+    use crate::character::SkinError;
+    use crate::character::inertia::{Carried, ClothInertia, carry};
+    use crate::ecs::Cloth;
+
+    fn placed(n: usize) -> Cloth {
+        let mut cloth = Cloth::new(cape_model(n, 1.5));
+        cloth.place(&Affine3A::IDENTITY);
+        let pins = cloth.model.pins().to_vec();
+        cloth.pins_stepped = pins
+            .iter()
+            .map(|&p| (p, cloth.state.positions[p as usize]))
+            .collect();
+        cloth
+    }
+
+    fn at(x: f32) -> Affine3A {
+        Affine3A::from_translation(Vec3::new(x, 0.0, 0.0))
+    }
+
+    #[test]
+    fn a_velocity_scale_of_zero_carries_the_cloth_with_its_anchor() {
+        let mut cloth = placed(4);
+        let before = cloth.state.clone();
+        let mut inertia = ClothInertia::default().with_scales(0.0, 1.0);
+        assert_eq!(
+            carry(&mut inertia, &mut cloth, at(0.0), 0.1),
+            Carried::Nothing
+        );
+        assert_eq!(
+            carry(&mut inertia, &mut cloth, at(0.5), 0.1),
+            Carried::Scaled
+        );
+        for i in 0..cloth.model.vertex_count() {
+            let moved = cloth.state.positions[i] - before.positions[i];
+            let expected = if cloth.model.pinned()[i] { 0.0 } else { 0.5 };
+            assert!((moved.x - expected).abs() < 1e-6, "{i}: {moved}");
+            assert_eq!(cloth.state.velocities[i], before.velocities[i]);
+        }
+        // The pins' last positions moved too: the pins keep no velocity.
+        for &(p, last) in &cloth.pins_stepped {
+            assert!((last.x - before.positions[p as usize].x - 0.5).abs() < 1e-6);
+        }
+        // At half the scale, half the motion.
+        let mut cloth = placed(4);
+        let mut inertia = ClothInertia::default().with_scales(0.5, 1.0);
+        carry(&mut inertia, &mut cloth, at(0.0), 0.1);
+        carry(&mut inertia, &mut cloth, at(0.5), 0.1);
+        let free = (0..16).find(|&i| !cloth.model.pinned()[i]).unwrap();
+        assert!((cloth.state.positions[free].x - before.positions[free].x - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn an_acceleration_scale_of_zero_gives_the_cloth_its_anchors_change_of_velocity() {
+        let mut cloth = placed(4);
+        let mut inertia = ClothInertia::default().with_scales(1.0, 0.0);
+        let free = (0..16).find(|&i| !cloth.model.pinned()[i]).unwrap();
+        carry(&mut inertia, &mut cloth, at(0.0), 0.1);
+        carry(&mut inertia, &mut cloth, at(0.0), 0.1);
+        assert_eq!(cloth.state.velocities[free], Vec3A::ZERO);
+        // Starts at 2 m/s: the cloth takes 2 m/s at once, positions untouched.
+        let x = cloth.state.positions[free];
+        carry(&mut inertia, &mut cloth, at(0.2), 0.1);
+        assert!((cloth.state.velocities[free] - Vec3A::new(2.0, 0.0, 0.0)).length() < 1e-5);
+        assert_eq!(cloth.state.positions[free], x);
+        // At a steady 2 m/s, nothing more.
+        carry(&mut inertia, &mut cloth, at(0.4), 0.1);
+        assert!((cloth.state.velocities[free] - Vec3A::new(2.0, 0.0, 0.0)).length() < 1e-5);
+        // The defaults change nothing at all.
+        let mut cloth = placed(4);
+        let before = cloth.state.clone();
+        let mut inertia = ClothInertia::default();
+        for x in [0.0, 0.3, 1.0, 50.0] {
+            assert_ne!(
+                carry(&mut inertia, &mut cloth, at(x), 0.1),
+                Carried::Teleported
+            );
+        }
+        assert_eq!(cloth.state, before);
+    }
+
+    #[test]
+    fn a_teleported_anchor_moves_the_cloth_rigidly_velocities_turned() {
+        let mut cloth = placed(4);
+        for (i, v) in cloth.state.velocities.iter_mut().enumerate() {
+            *v = Vec3A::new(i as f32, 1.0, 0.0);
+        }
+        let before = cloth.state.clone();
+        let mut inertia = ClothInertia::default().with_teleport(10.0);
+        carry(&mut inertia, &mut cloth, Affine3A::IDENTITY, 0.1);
+        let jump = Affine3A::from_rotation_translation(
+            Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+            Vec3::new(100.0, 0.0, 0.0),
+        );
+        assert_eq!(
+            carry(&mut inertia, &mut cloth, jump, 0.1),
+            Carried::Teleported
+        );
+        for i in 0..16 {
+            let v = jump.transform_vector3a(before.velocities[i]);
+            assert!((cloth.state.velocities[i] - v).length() < 1e-4);
+            if !cloth.model.pinned()[i] {
+                let x = jump.transform_point3a(before.positions[i]);
+                assert!((cloth.state.positions[i] - x).length() < 1e-4);
+                assert!((cloth.last_good.positions[i] - x).length() < 1e-4);
+            }
+        }
+        for &(p, last) in &cloth.pins_stepped {
+            let x = jump.transform_point3a(before.positions[p as usize]);
+            assert!((last - x).length() < 1e-4);
+        }
+        // A step of 9 m is no teleport.
+        assert_ne!(
+            carry(&mut inertia, &mut cloth, jump * at(9.0), 0.1),
+            Carried::Teleported
+        );
+    }
+
+    #[test]
+    fn bad_inertia_is_a_typed_error() {
+        let ok = ClothInertia::default();
+        assert_eq!(ok.validate(), Ok(()));
+        assert_eq!(
+            ok.clone().with_scales(1.5, 1.0).validate(),
+            Err(SkinError::Scale(1.5))
+        );
+        assert_eq!(
+            ok.clone().with_scales(1.0, -0.1).validate(),
+            Err(SkinError::Scale(-0.1))
+        );
+        assert!(ok.clone().with_scales(f32::NAN, 1.0).validate().is_err());
+        assert_eq!(
+            ok.clone().with_teleport(0.0).validate(),
+            Err(SkinError::Teleport(0.0))
+        );
+        assert!(ok.with_teleport(f32::NAN).validate().is_err());
+    }
 }

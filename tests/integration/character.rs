@@ -153,3 +153,69 @@ fn a_mesh_without_skin_or_a_skin_of_another_size_is_a_typed_answer() {
     let stats = app.world().get::<ClothStats>(cloth).unwrap();
     assert!(stats.is_running());
 }
+
+/// A 2 m cape of cotton, 15×15, its top row pinned to its own entity.
+fn hanging_cape() -> Cloth {
+    let n = 15;
+    Cloth::build(
+        ClothBuilder::grid(
+            n,
+            n,
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(-1.0, -2.0, 0.0),
+        )
+        .with_material(ClothMaterial::COTTON)
+        .with_pins(0..n as u32),
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_cape_teleported_100_m_moves_with_its_anchor_and_rests_there_at_once() {
+    let chebyshev = bevy_cloth::PRESETS
+        .iter()
+        .find(|p| p.name() == "chebyshev")
+        .unwrap()
+        .method;
+    for method in [AnyMethod::default(), chebyshev] {
+        // With a teleport distance of 5 m, and without (the cloth is dragged).
+        let mut worst = Vec::new();
+        for inertia in [Some(ClothInertia::default().with_teleport(5.0)), None] {
+            let mut app = app();
+            app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+            let mut entity = app
+                .world_mut()
+                .spawn((hanging_cape(), Transform::default()));
+            method.insert_now(&mut entity);
+            if let Some(inertia) = inertia.clone() {
+                entity.insert(inertia);
+            }
+            let cloth = entity.id();
+            run_steps(&mut app, 180);
+            let rested = positions(&app, cloth);
+            app.world_mut()
+                .get_mut::<Transform>(cloth)
+                .unwrap()
+                .translation
+                .x += 100.0;
+            run_steps(&mut app, 60);
+            let s = stats(&app, cloth);
+            let off = positions(&app, cloth)
+                .iter()
+                .zip(&rested)
+                .map(|(x, r)| (*x - *r - Vec3A::new(100.0, 0.0, 0.0)).length())
+                .fold(0.0, f32::max);
+            if inertia.is_some() {
+                assert!(s.is_running(), "{}: {:?}", method.name(), s.status);
+                assert_eq!(s.retried_steps, 0, "{}", method.name());
+                assert!(max_speed(&app, cloth) < 0.05, "{}", method.name());
+            }
+            worst.push(off);
+        }
+        // Within 2 cm of where it hung, 100 m on, 1 s after the jump; dragged
+        // across the jump without it, it is still far from there.
+        assert!(worst[0] < 0.02, "{}: {worst:?}", method.name());
+        assert!(worst[1] > 0.5, "{}: {worst:?}", method.name());
+    }
+}

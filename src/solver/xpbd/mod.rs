@@ -50,7 +50,7 @@
 mod colouring;
 #[cfg(test)]
 mod tests;
-mod tethers;
+pub(crate) mod tethers;
 
 use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
