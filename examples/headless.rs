@@ -2,7 +2,7 @@
 //! and prints one summary line.
 //!
 //! ```text
-//! cargo run --release --example headless -- [--scene lab|assignment] [--method M] \
+//! cargo run --release --example headless -- [--scene lab|assignment|cape] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--material cotton|E,RHO] \
 //!     [--rho 0.995] [--sphere] \
@@ -31,6 +31,13 @@
 //!   penalty sphere of radius 0.1 at (0, 0.2, 0.5·sin(t/2)) sweeping through
 //!   the hanging cloth (the spec leaves its path open; this is ours), with
 //!   stiffness `--penalty` (default 10).
+//! - `cape`: the character of `examples/cape.rs` (run, sharp turns, jumps,
+//!   teleported 100 m at 6 s) in its cape (`--n` columns, 8/5 as many rows)
+//!   and skirt, with tethers, max distance, backstop and inertia; the line
+//!   is the cape's, with `max_stretch` its largest over the run (and
+//!   `skirt_max_stretch` the skirt's), and adds `teleports=` and `body_penetrations=` (garment
+//!   vertices found inside a body capsule after a step, counted over the
+//!   run). A retried step counts as a failure.
 //!
 //! `--cloths N` spawns `N` copies of the cloth side by side, stepped in
 //! parallel across the compute pool; the summary then reports the median
@@ -44,6 +51,8 @@
 //! the usage and exits with status 0; bad arguments print the usage and exit
 //! with status 2.
 
+#[path = "character/mod.rs"]
+mod character;
 #[path = "cli/mod.rs"]
 mod cli;
 
@@ -57,11 +66,12 @@ use cli::{CliError, Long, Parser, Short, value};
 
 const USAGE: &str = "usage: headless [OPTIONS]
 
-  --scene lab|assignment   the scene (default lab)
+  --scene lab|assignment|cape   the scene (default lab)
   --method NAME            a preset (default chebyshev, the lab's): jacobi, chebyshev,
                            chebyshev-auto, pbd, symplectic, linear-cg, linear-direct, pd,
                            pd-anderson, newton, exact, stiff
-  --n N                    the lab cloth's side in vertices (default 21)
+  --n N                    the lab cloth's side in vertices (default 21); in the cape
+                           scene, the cape's columns (default 20; 50: 4,000 vertices)
   --rows R --cols C        the assignment's grid (default 30 x 30)
   --cloths N               copies side by side (default 1)
   --steps S                fixed steps to run (default 300)
@@ -90,13 +100,14 @@ is not finite (and says why), 2 on a bad argument.";
 enum Scene {
     Lab,
     Assignment,
+    Cape,
 }
 
 #[derive(Debug, Clone)]
 struct Options {
     scene: Scene,
     method: AnyMethod,
-    n: usize,
+    n: Option<usize>,
     cloths: usize,
     rows: usize,
     cols: usize,
@@ -123,7 +134,7 @@ impl Default for Options {
             method: bevy_cloth::methods::preset("chebyshev")
                 .expect("a preset")
                 .method,
-            n: 21,
+            n: None,
             cloths: 1,
             rows: 30,
             cols: 30,
@@ -154,15 +165,17 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                 o.scene = match scene.as_str() {
                     "lab" => Scene::Lab,
                     "assignment" => Scene::Assignment,
+                    "cape" => Scene::Cape,
                     _ => {
-                        return Err(
-                            format!("unknown scene '{scene}' (known: lab, assignment)").into()
-                        );
+                        return Err(format!(
+                            "unknown scene '{scene}' (known: lab, assignment, cape)"
+                        )
+                        .into());
                     }
                 };
             }
             Long("method") => o.method = value(&mut parser, "--method")?,
-            Long("n") => o.n = value(&mut parser, "--n")?,
+            Long("n") => o.n = Some(value(&mut parser, "--n")?),
             Long("cloths") => o.cloths = value(&mut parser, "--cloths")?,
             Long("rows") => o.rows = value(&mut parser, "--rows")?,
             Long("cols") => o.cols = value(&mut parser, "--cols")?,
@@ -207,6 +220,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                 let dt = o.dt.unwrap_or(match o.scene {
                     Scene::Lab => LAB_DT,
                     Scene::Assignment => ASSIGNMENT_DT,
+                    Scene::Cape => character::DT,
                 });
                 AnyMethod::Xpbd(x.with_substeps(k, dt))
             }
@@ -276,11 +290,13 @@ const ASSIGNMENT_DT: f64 = 5e-3;
 fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
     let (builder, params, dt) = match o.scene {
         Scene::Lab => {
-            let b = ClothBuilder::lab_grid(o.n)
-                .with_pins([0, o.n.saturating_sub(1) as u32])
+            let n = o.n.unwrap_or(21);
+            let b = ClothBuilder::lab_grid(n)
+                .with_pins([0, n.saturating_sub(1) as u32])
                 .with_total_mass(o.mass.unwrap_or(441.0));
             (b, ClothParams::LAB, LAB_DT)
         }
+        Scene::Cape => return Err("the cape scene builds its own cloths".into()),
         Scene::Assignment => {
             let mut b = ClothBuilder::assignment(o.rows, o.cols);
             if let Some(total) = o.mass {
@@ -329,6 +345,9 @@ fn sweep(time: Res<Time>, mut spheres: Query<&mut Transform, With<Sweeping>>) {
 }
 
 fn run(o: &Options) -> Result<(), String> {
+    if o.scene == Scene::Cape {
+        return run_cape(o);
+    }
     let (builder, params, dt) = scene(o)?;
     let model = builder.build().map_err(|e| e.to_string())?;
     let mut app = App::new();
@@ -377,6 +396,7 @@ fn run(o: &Options) -> Result<(), String> {
                     Transform::from_xyz(0.0, -4.0, 4.0),
                 ));
             }
+            Scene::Cape => {}
             Scene::Assignment => {
                 app.world_mut().spawn((
                     SphereCollider::penalty(0.1, o.penalty),
@@ -450,6 +470,100 @@ fn run(o: &Options) -> Result<(), String> {
         ClothStatus::Running => Ok(()),
         status => Err(format!("the cloth did not finish running: {status:?}")),
     }
+}
+
+/// The cape's step times, one per fixed step.
+fn record_cape(mut times: ResMut<StepTimes>, garments: Query<(&character::Garment, &ClothStats)>) {
+    for (garment, stats) in &garments {
+        if garment.name == "cape" {
+            times.0.push(stats.step_time);
+        }
+    }
+}
+
+/// Teleports the character 100 m at 6 s.
+fn teleport_at_six(time: Res<Time>, mut running: ResMut<character::Running>) {
+    let t = time.elapsed_secs_f64();
+    if running.teleports == 0 && t >= 6.0 {
+        running.teleport = true;
+    }
+}
+
+/// The cape scene: the character runs, turns, jumps and is teleported 100 m
+/// at 6 s; prints the cape's line and the body's count.
+fn run_cape(o: &Options) -> Result<(), String> {
+    let settings = character::CapeSettings {
+        method: o.method,
+        cape_cols: o.n.unwrap_or(20),
+        ..Default::default()
+    };
+    if !(2..=200).contains(&settings.cape_cols) {
+        return Err("--n (the cape's columns) must be between 2 and 200".into());
+    }
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, ClothPlugins::default()))
+        .insert_resource(settings)
+        .add_plugins(character::CapeScenePlugin)
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
+        .init_resource::<StepTimes>()
+        .add_systems(
+            FixedUpdate,
+            (
+                teleport_at_six.in_set(ClothSystems::First),
+                record_cape.in_set(ClothSystems::Last),
+            ),
+        );
+    app.finish();
+    app.cleanup();
+    app.update();
+    for _ in 0..o.steps {
+        app.update();
+    }
+    let world = app.world_mut();
+    let mut garments = world.query::<(&character::Garment, &Cloth, &ClothStats)>();
+    let count = world.resource::<character::BodyPenetrations>().clone();
+    let teleports = world.resource::<character::Running>().teleports;
+    let mut times = world.resource::<StepTimes>().0.clone();
+    times.sort();
+    let median = times.get(times.len() / 2).copied().unwrap_or_default();
+    let worst = |name| {
+        count
+            .max_stretch
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(f32::NAN, |&(_, s)| s)
+    };
+    let mut failed = None;
+    let mut line = String::new();
+    for (garment, cloth, stats) in garments.iter(world) {
+        let finite = cloth.positions().iter().all(|p| p.is_finite());
+        if garment.name == "cape" {
+            line = format!(
+                "scene=Cape method={} vertices={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} skirt_max_stretch={:.4} finite={} status={:?}",
+                stats.method,
+                cloth.positions().len(),
+                stats.steps,
+                median.as_secs_f64() * 1e6,
+                stats.retried_steps,
+                worst("cape"),
+                worst("skirt"),
+                finite,
+                stats.status,
+            );
+        }
+        if !finite || stats.status != ClothStatus::Running || stats.retried_steps > 0 {
+            failed = Some(format!(
+                "the {} did not run cleanly: finite={finite} retried_steps={} status={:?}",
+                garment.name, stats.retried_steps, stats.status
+            ));
+        }
+    }
+    println!(
+        "{line} teleports={teleports} body_penetrations={} deepest_mm={:.2}",
+        count.count,
+        1e3 * count.deepest
+    );
+    failed.map_or(Ok(()), Err)
 }
 
 fn main() -> ExitCode {

@@ -37,6 +37,9 @@ pub struct ClothSkin {
     /// The skinning that computes `pose`, if any.
     pub skinning: Option<Skinning>,
     tethers: SkinTethers,
+    /// The pose's positions at the last step's end (where the skin moves
+    /// from through `stiff`'s substeps).
+    pub(crate) previous: Vec<bevy::math::Vec3A>,
 }
 
 impl ClothSkin {
@@ -47,6 +50,7 @@ impl ClothSkin {
             pose,
             skinning: None,
             tethers: SkinTethers::default(),
+            previous: Vec::new(),
         }
     }
 
@@ -57,6 +61,7 @@ impl ClothSkin {
             pose: SkinPose::default(),
             skinning: Some(skinning),
             tethers: SkinTethers::default(),
+            previous: Vec::new(),
         }
     }
 }
@@ -299,6 +304,7 @@ fn hold_to_skin(
                 );
                 // The state changed after the step's own check.
                 cloth.measured = None;
+                skin.previous.clone_from(&skin.pose.positions);
             }
             Err(error) if !warned.contains(&entity) => {
                 warn!("cloth {entity} is not held to its skin: {error}");

@@ -24,11 +24,11 @@
 //!   `Δ`, velocities turned with it, the guard's last good state too), so it
 //!   is not dragged across the jump and the guard sees nothing to catch.
 
-use bevy::math::Affine3A;
+use bevy::math::{Affine3A, Vec3A};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use super::SkinError;
+use super::{ClothSkin, SkinError};
 use crate::ecs::{Cloth, ClothStats};
 
 /// How much of its anchor's motion a cloth feels, and from what jump the
@@ -95,7 +95,7 @@ impl ClothInertia {
                 return Err(SkinError::Scale(s));
             }
         }
-        if !(self.teleport_distance > 0.0) {
+        if self.teleport_distance.is_nan() || self.teleport_distance <= 0.0 {
             return Err(SkinError::Teleport(self.teleport_distance));
         }
         Ok(())
@@ -120,10 +120,13 @@ pub(super) enum Carried {
 }
 
 /// Applies `inertia` to `cloth` given its anchor's global transform `now`,
-/// before a step of `dt` seconds (see the [module docs](self)).
+/// before a step of `dt` seconds (see the [module docs](self)). `skin`, a
+/// character cloth's skinned positions at the last step, moves with the
+/// pins' last positions: the step moves the skin from there.
 pub(super) fn carry(
     inertia: &mut ClothInertia,
     cloth: &mut Cloth,
+    skin: Option<&mut [Vec3A]>,
     now: Affine3A,
     dt: f32,
 ) -> Carried {
@@ -138,9 +141,14 @@ pub(super) fn carry(
     let jump = now.translation.distance(before.translation);
     if jump > inertia.teleport_distance {
         // The last step's motion stays the reference for the next one's
-        // acceleration: the jump is no velocity.
-        inertia.last = Some((now, last_motion));
+        // acceleration (the jump is no velocity), carried to where the
+        // anchor is now: a motion is a map of the whole space, and a turn
+        // read 100 m from where it was measured would be a fling.
+        inertia.last = Some((now, motion * last_motion * motion.inverse()));
         teleport(cloth, &motion);
+        for p in skin.into_iter().flatten() {
+            *p = motion.transform_point3a(*p);
+        }
         return Carried::Teleported;
     }
     inertia.last = Some((now, motion));
@@ -165,7 +173,8 @@ pub(super) fn carry(
         *x += share * moved;
     }
     if share > 0.0 {
-        for (_, p) in &mut cloth.pins_stepped {
+        let skin = skin.into_iter().flatten();
+        for p in cloth.pins_stepped.iter_mut().map(|(_, p)| p).chain(skin) {
             *p += share * (motion.transform_point3a(*p) - *p);
         }
     }
@@ -200,11 +209,17 @@ fn teleport(cloth: &mut Cloth, motion: &Affine3A) {
 pub(super) fn carry_with_anchor(
     time: Res<Time>,
     helper: TransformHelper,
-    mut cloths: Query<(Entity, &mut Cloth, &mut ClothInertia, &ClothStats)>,
+    mut cloths: Query<(
+        Entity,
+        &mut Cloth,
+        &mut ClothInertia,
+        &ClothStats,
+        Option<&mut ClothSkin>,
+    )>,
     mut warned: Local<Vec<Entity>>,
 ) {
     let dt = time.delta_secs();
-    for (entity, mut cloth, mut inertia, stats) in &mut cloths {
+    for (entity, mut cloth, mut inertia, stats, skin) in &mut cloths {
         if !cloth.initialized || !stats.is_running() {
             continue;
         }
@@ -219,6 +234,7 @@ pub(super) fn carry_with_anchor(
         let Ok(global) = helper.compute_global_transform(anchor) else {
             continue;
         };
-        carry(&mut inertia, &mut cloth, global.affine(), dt);
+        let skin = skin.map(|s| s.into_inner().previous.as_mut_slice());
+        carry(&mut inertia, &mut cloth, skin, global.affine(), dt);
     }
 }

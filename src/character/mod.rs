@@ -40,6 +40,7 @@ use bevy::reflect::Reflect;
 use thiserror::Error;
 
 use crate::model::{ClothModel, ClothState};
+use crate::solver::SkinInput;
 use crate::solver::xpbd::tethers::{Tethers, hold};
 
 /// Where the animation puts each cloth vertex this step: its skinned
@@ -121,6 +122,19 @@ impl SkinConstraints {
         self
     }
 
+    /// The constraints and `pose` as a method reads them inside its step.
+    pub fn input<'a>(&'a self, pose: &'a SkinPose) -> SkinInput<'a> {
+        SkinInput {
+            positions: &pose.positions,
+            previous: None,
+            normals: &pose.normals,
+            max_distance: &self.max_distance,
+            backstop_distance: &self.backstop_distance,
+            backstop_radius: self.backstop_radius,
+            tether_scale: self.tether_scale,
+        }
+    }
+
     /// Checks the constraints against a cloth of `vertices` vertices and a
     /// pose: lengths, and values (distances not NaN nor negative, the
     /// radius positive and finite, the drive in `[0, 1]`, the tether scale
@@ -150,7 +164,7 @@ impl SkinConstraints {
         if !(0.0..=1.0).contains(&self.drive) {
             return Err(SkinError::Drive(self.drive));
         }
-        if !(self.tether_scale >= 1.0) {
+        if self.tether_scale.is_nan() || self.tether_scale < 1.0 {
             return Err(SkinError::Tether(self.tether_scale));
         }
         if !(pose.positions.iter().all(|p| p.is_finite())
@@ -249,28 +263,24 @@ pub fn apply_skin(
     };
     let inv_dt = 1.0 / dt;
     let pull = 1.0 - (1.0 - constraints.drive).powf(dt);
-    let radius = constraints.backstop_radius;
+    let input = constraints.input(pose);
     let mut held = 0;
     let ClothState {
         positions,
         velocities,
     } = state;
-    let vertices = (positions.iter_mut().zip(velocities.iter_mut()))
-        .zip(model.pinned())
-        .zip(pose.positions.iter().zip(&pose.normals))
-        .zip(
-            constraints
-                .max_distance
-                .iter()
-                .zip(&constraints.backstop_distance),
-        );
-    for (i, ((((x, v), &pinned), (&skin, &normal)), (&max, &backstop))) in vertices.enumerate() {
+    let vertices = (positions.iter_mut().zip(velocities.iter_mut())).zip(model.pinned());
+    let n = pose.positions.len().min(pose.normals.len());
+    let n = n
+        .min(constraints.max_distance.len())
+        .min(constraints.backstop_distance.len());
+    for (i, ((x, v), &pinned)) in vertices.enumerate().take(n) {
         if pinned {
             continue;
         }
         let start = *x;
         if pull > 0.0 {
-            *x += pull * (skin - *x);
+            *x += pull * (pose.positions[i] - *x);
         }
         let mut moved = false;
         if let Some(&(place, rest)) = ties.get(i)
@@ -280,24 +290,7 @@ pub fn apply_skin(
             hold(x, anchors[place as usize], rest * scale);
             moved |= *x != before;
         }
-        if backstop.is_finite() {
-            let centre = skin - (backstop + radius) * normal.normalize_or_zero();
-            let d = *x - centre;
-            let l = d.length();
-            if l < radius {
-                let out = if l > 0.0 { d / l } else { normal };
-                *x = centre + radius * out;
-                moved = true;
-            }
-        }
-        if max.is_finite() {
-            let d = *x - skin;
-            let l = d.length();
-            if l > max {
-                *x = skin + d * (max / l);
-                moved = true;
-            }
-        }
+        moved |= input.hold(i, x);
         held += usize::from(moved);
         *v += (*x - start) * inv_dt;
     }

@@ -13,11 +13,13 @@ use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::prelude::*;
 use bevy::reflect::GetTypeRegistration;
 
+use crate::character::ClothSkin;
 use crate::collision::{Capsule, PenaltySphere, Shape};
 use crate::ecs::{
     Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothMethods, ClothParams, ClothSchedule,
     ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
 };
+use crate::solver::SkinInput;
 use crate::solver::guard::{GuardError, guarded_step};
 use crate::solver::{Method, StepError, StepInput};
 
@@ -184,6 +186,7 @@ type StepData<M> = (
     Ref<'static, M>,
     &'static mut ClothWorkspace<<M as Method>::Workspace>,
     &'static mut ClothStats,
+    Option<&'static ClothSkin>,
 );
 
 /// Sets `status` to `Invalid(error)`, warning when it changes (compared by
@@ -215,6 +218,7 @@ fn step_cloths<M: ClothMethod>(
         method,
         mut ws,
         mut stats,
+        skin,
     )| {
         cloth.claimed = true;
         stats.contacts = 0;
@@ -272,6 +276,18 @@ fn step_cloths<M: ClothMethod>(
         cloth.pin_velocities(dt as f32);
         let (penalty, contacts, solver_ws) = (&ws.penalty, &ws.contacts, &mut ws.solver);
         let model = &cloth.model;
+        // A skin that does not fit the cloth is left to `hold_to_skin`,
+        // which warns.
+        let skin = skin
+            .filter(|s| {
+                s.constraints
+                    .validate(model.vertex_count(), &s.pose)
+                    .is_ok()
+            })
+            .map(|s| SkinInput {
+                previous: Some(&s.previous[..]),
+                ..s.constraints.input(&s.pose)
+            });
         let method = &*method;
         let start = Instant::now();
         cloth.measured = None;
@@ -290,6 +306,7 @@ fn step_cloths<M: ClothMethod>(
                     params: p,
                     spheres: penalty,
                     contacts,
+                    skin,
                 };
                 method.step_with(input, state, solver_ws)
             },

@@ -8,6 +8,8 @@
 
 use core::fmt::Debug;
 
+use bevy::math::Vec3A;
+
 use super::params::{ParamError, StepError, StepParams, StepReport, check_state};
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothModel, ClothState};
@@ -37,6 +39,74 @@ pub struct StepInput<'a> {
     /// every substep); the others ignore them and leave them to the
     /// projection after the step. Empty from [`Method::step`].
     pub contacts: &'a [Shape],
+    /// A character cloth's skinned pose and constraints
+    /// ([`ClothSkin`](crate::ClothSkin)): a method that can holds its
+    /// vertices to them inside its step (the `stiff` method, in every
+    /// substep); all are held to them after the step. `None` from
+    /// [`Method::step`].
+    pub skin: Option<SkinInput<'a>>,
+}
+
+/// A character cloth's skinned pose and per-vertex constraints, as a
+/// method reads them (see [`crate::character`]): one entry per vertex in
+/// each list.
+#[derive(Clone, Copy, Debug)]
+pub struct SkinInput<'a> {
+    /// Skinned positions at the step's end.
+    pub positions: &'a [Vec3A],
+    /// Skinned positions at the step's start, if known: a method with
+    /// substeps moves the skin from them to `positions` through its
+    /// substeps, as it moves the pins (an end pose held from the first
+    /// substep would pull the cloth ahead of its pins).
+    pub previous: Option<&'a [Vec3A]>,
+    /// Skinned unit normals.
+    pub normals: &'a [Vec3A],
+    /// Max distance from the skinned position (`∞`: none).
+    pub max_distance: &'a [f32],
+    /// Backstop distance behind it along the normal (`∞`: none).
+    pub backstop_distance: &'a [f32],
+    /// The backstop spheres' radius.
+    pub backstop_radius: f32,
+    /// Tethers' scale over the rest distance to the nearest pin (`∞`:
+    /// none).
+    pub tether_scale: f32,
+}
+
+impl SkinInput<'_> {
+    /// Moves vertex `i` at `x` out of its backstop sphere and back within
+    /// its max distance; whether it moved.
+    #[inline]
+    pub fn hold(&self, i: usize, x: &mut Vec3A) -> bool {
+        self.hold_at(i, self.positions[i], x)
+    }
+
+    /// [`hold`](Self::hold) with the skin of vertex `i` at `skin`.
+    #[inline]
+    pub fn hold_at(&self, i: usize, skin: Vec3A, x: &mut Vec3A) -> bool {
+        let normal = self.normals[i];
+        let (max, backstop) = (self.max_distance[i], self.backstop_distance[i]);
+        let mut moved = false;
+        if backstop.is_finite() {
+            let radius = self.backstop_radius;
+            let centre = skin - (backstop + radius) * normal.normalize_or_zero();
+            let d = *x - centre;
+            let l = d.length();
+            if l < radius {
+                let out = if l > 0.0 { d / l } else { normal };
+                *x = centre + radius * out;
+                moved = true;
+            }
+        }
+        if max.is_finite() {
+            let d = *x - skin;
+            let l = d.length();
+            if l > max {
+                *x = skin + d * (max / l);
+                moved = true;
+            }
+        }
+        moved
+    }
 }
 
 /// A simulation method: settings that advance a [`ClothState`] by one step
@@ -114,6 +184,7 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
             params,
             spheres,
             contacts: &[],
+            skin: None,
         };
         self.step_with(input, state, workspace)
     }

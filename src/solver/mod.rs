@@ -59,7 +59,7 @@ pub use engine::simd::Simd;
 pub use measures::{
     ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective, step_error,
 };
-pub use method::{LAB_ITERATIONS, LAB_RHO, Method, StepInput};
+pub use method::{LAB_ITERATIONS, LAB_RHO, Method, SkinInput, StepInput};
 pub use params::{
     CONVERGENCE_TOLERANCE, ParamError, SolveError, SpringStiffness, StepError, StepParams,
     StepReport,

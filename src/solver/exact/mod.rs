@@ -167,6 +167,7 @@ impl Method for ExactSolver {
             params,
             spheres,
             contacts,
+            skin: _,
         } = input;
         let config = self;
         let n = model.vertex_count();

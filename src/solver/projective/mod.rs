@@ -482,6 +482,7 @@ impl Method for ProjectiveSolver {
             params,
             spheres,
             contacts,
+            skin: _,
         } = input;
         // The penalty spheres, and the contacts as penalties.
         let mut penalties = core::mem::take(&mut ws.penalties);

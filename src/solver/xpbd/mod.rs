@@ -213,6 +213,7 @@ impl Method for XpbdSolver {
             params,
             spheres,
             contacts,
+            skin,
         } = input;
         let n = model.vertex_count();
         let base = self.substeps(params.dt);
@@ -298,7 +299,21 @@ impl Method for XpbdSolver {
         // and begins the next (prediction), so each substep reads them once.
         // Without penalty spheres or solids it is a plain loop (the general
         // one kept its constants on the stack: a third of the lab step).
-        let tethered = self.tethers && !model.pins().is_empty() && {
+        // A character cloth's skin, held in every substep (its lists cover
+        // the cloth: the plugin checks).
+        let skin = skin.filter(|s| {
+            s.positions.len().min(s.normals.len()) >= n
+                && s.max_distance.len().min(s.backstop_distance.len()) >= n
+        });
+        // The skin moves through the substeps from where it was, as the
+        // pins do, unless a vertex's skin jumped (a teleport).
+        let skin_start = skin.and_then(|s| s.previous).filter(|p| p.len() >= n);
+        ws.skin_now.clear();
+        if let Some(s) = skin {
+            ws.skin_now.extend_from_slice(&s.positions[..n]);
+        }
+        let skin_tethers = skin.map_or(f32::INFINITY, |s| s.tether_scale);
+        let tethered = (self.tethers || skin_tethers.is_finite()) && !model.pins().is_empty() && {
             ws.tethers.update(model);
             ws.tethers.any()
         };
@@ -325,7 +340,15 @@ impl Method for XpbdSolver {
         ws.anchors.clear();
         let mut slack = 1.0;
         if tethered {
-            slack = tethers::slack(model, params.gravity, k[SpringKind::Stretch as usize]);
+            if self.tethers {
+                slack = tethers::slack(model, params.gravity, k[SpringKind::Stretch as usize]);
+            }
+            // The skin's tethers where they are tighter (or the only ones).
+            slack = if self.tethers {
+                slack.min(skin_tethers)
+            } else {
+                skin_tethers
+            };
             ws.anchors.extend(ws.pin_paths.iter().map(|&(end, _)| end));
         }
         // A cloth far outside its tethers' reach (its pins teleported away)
@@ -341,12 +364,12 @@ impl Method for XpbdSolver {
                         || x.distance(ws.anchors[place as usize]) <= rest * slack + reach
                 });
         let ties = if tethered { &ws.tethers.ties[..n] } else { &[] };
-        let plain = contacts.is_empty() && !tethered;
+        let plain = contacts.is_empty() && !tethered && skin.is_none();
         let fall = h * gravity;
         let pass = |x: &mut [Vec3A],
                     v: &mut [Vec3A],
                     prev: &mut [[Vec3A; 2]],
-                    anchors: &[Vec3A],
+                    (anchors, skin_now): (&[Vec3A], &[Vec3A]),
                     end: bool,
                     begin: bool| {
             let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
@@ -359,7 +382,7 @@ impl Method for XpbdSolver {
                 }
                 return 0;
             }
-            if contacts.is_empty() {
+            if contacts.is_empty() && skin.is_none() {
                 // Tethers only.
                 for ((((x, v), p), &pinned), &(place, rest)) in vertices.zip(ties) {
                     if !pinned {
@@ -380,13 +403,16 @@ impl Method for XpbdSolver {
                     if let Some(&(place, rest)) = ties.get(i) {
                         hold(x, anchors[place as usize], rest * slack);
                     }
+                    if let Some(skin) = &skin {
+                        skin.hold_at(i, skin_now[i], x);
+                    }
                     touching += u32::from(project(x, p[0], solids));
                 }
                 plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
             }
             touching
         };
-        pass(x, v, prev, &[], false, true);
+        pass(x, v, prev, (&[], &[]), false, true);
         let springs = ColouredSprings::new(
             &ws.links.ends,
             &ws.links.rest,
@@ -406,8 +432,26 @@ impl Method for XpbdSolver {
                     *anchor = x[p as usize];
                 }
             }
+            if let (Some(s), Some(start)) = (skin, skin_start) {
+                let t = substep as f32 / substeps as f32;
+                let teleport = (TELEPORT * model.size()).powi(2);
+                for ((now, &end), &start) in ws.skin_now.iter_mut().zip(s.positions).zip(start) {
+                    *now = if end.distance_squared(start) < teleport {
+                        start + (end - start) * t
+                    } else {
+                        end
+                    };
+                }
+            }
             sweep(params.simd, springs, x);
-            contacts_held = pass(x, v, prev, &ws.anchors, true, substep < substeps);
+            contacts_held = pass(
+                x,
+                v,
+                prev,
+                (&ws.anchors, &ws.skin_now),
+                true,
+                substep < substeps,
+            );
         }
         Ok(StepReport {
             iterations: substeps,
@@ -550,6 +594,8 @@ pub struct XpbdWorkspace {
     anchors: Vec<Vec3A>,
     /// Per pin: its position at the step's end and its motion over the step.
     pin_paths: Vec<(Vec3A, Vec3A)>,
+    /// A character cloth's skinned positions at the current substep.
+    skin_now: Vec<Vec3A>,
 }
 
 impl XpbdWorkspace {

@@ -37,6 +37,7 @@ fn run_with_contacts(
             params,
             spheres: &[],
             contacts,
+            skin: None,
         };
         method.step_with(input, &mut state, &mut ws).unwrap();
         each(&state);
@@ -496,6 +497,7 @@ fn pins_move_through_the_substeps_unless_they_were_teleported() {
             params: &params,
             spheres: &[],
             contacts: &[],
+            skin: None,
         };
         method.step_with(input, &mut state, &mut ws).unwrap();
         state.positions
@@ -565,6 +567,7 @@ fn only_steps_near_a_collider_are_refined() {
             params: &params,
             spheres: &[],
             contacts,
+            skin: None,
         };
         XpbdSolver::STIFF
             .step_with(input, &mut state, &mut ws)
@@ -677,6 +680,7 @@ fn a_cotton_cape_swinging_onto_a_body_keeps_its_length_with_the_refinement() {
                 params: &params,
                 spheres: &[],
                 contacts: &[body],
+                skin: None,
             };
             method.step_with(input, &mut state, &mut ws).unwrap();
             worst = worst.max(max_stretch(&model, &state.positions));
