@@ -219,3 +219,43 @@ fn a_cape_teleported_100_m_moves_with_its_anchor_and_rests_there_at_once() {
         assert!(worst[1] > 0.5, "{}: {worst:?}", method.name());
     }
 }
+
+#[test]
+fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() {
+    use crate::cape_scene::{BodyPenetrations, CapeScenePlugin, CapeSettings, Garment, Running};
+    let mut app = app();
+    app.insert_resource(CapeSettings {
+        cape_cols: 8,
+        ..Default::default()
+    })
+    .add_plugins(CapeScenePlugin);
+    // Up to speed, a jump at 1.5 s, a sharp turn at 3.5 s; teleported at 4 s.
+    run_steps(&mut app, 240);
+    app.world_mut().resource_mut::<Running>().teleport = true;
+    run_steps(&mut app, 60);
+    let world = app.world_mut();
+    let running = world.resource::<Running>().clone();
+    let count = world.resource::<BodyPenetrations>().clone();
+    assert_eq!(running.teleports, 1);
+    assert_eq!(count.count, 0, "deepest {}", count.deepest);
+    let root = running.root_position();
+    let mut garments = world.query::<(&Garment, &Cloth, &ClothStats)>();
+    let mut seen = 0;
+    for (garment, cloth, stats) in garments.iter(world) {
+        seen += 1;
+        assert!(stats.is_running(), "{}: {:?}", garment.name, stats.status);
+        assert_eq!(stats.retried_steps, 0, "{}", garment.name);
+        // It came along: every vertex within 2 m of the character 100 m on.
+        for x in cloth.positions() {
+            assert!(
+                x.distance(root.into()) < 2.0,
+                "{}: {x} vs {root}",
+                garment.name
+            );
+        }
+    }
+    assert_eq!(seen, 2);
+    for &(name, stretch) in &count.max_stretch {
+        assert!(stretch < 0.1, "{name}: {stretch}");
+    }
+}

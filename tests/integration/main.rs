@@ -5,6 +5,11 @@ mod assignment;
 mod attach;
 #[cfg(feature = "avian")]
 mod avian;
+// The cape example's scene (character, garments, run, body count), shared
+// with `examples/cape.rs` and `headless --scene cape`.
+#[path = "../../examples/character/mod.rs"]
+#[allow(dead_code)]
+mod cape_scene;
 mod character;
 mod colliders;
 mod common;
