@@ -223,12 +223,11 @@ fn a_cape_teleported_100_m_moves_with_its_anchor_and_rests_there_at_once() {
 #[test]
 fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() {
     use crate::cape_scene::{BodyPenetrations, CapeScenePlugin, CapeSettings, Garment, Running};
-    let mut app = app();
+    let mut app = app_with((ClothPlugins::default(), CapeScenePlugin));
     app.insert_resource(CapeSettings {
         cape_cols: 8,
         ..Default::default()
-    })
-    .add_plugins(CapeScenePlugin);
+    });
     // Up to speed, a jump at 1.5 s, a sharp turn at 3.5 s; teleported at 4 s.
     run_steps(&mut app, 240);
     app.world_mut().resource_mut::<Running>().teleport = true;
