@@ -227,7 +227,8 @@ fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() 
     app.insert_resource(CapeSettings {
         cape_cols: 8,
         ..Default::default()
-    });
+    })
+    .insert_resource(Time::<Fixed>::from_seconds(crate::cape_scene::DT));
     // Up to speed, a jump at 1.5 s, a sharp turn at 3.5 s; teleported at 4 s.
     run_steps(&mut app, 240);
     app.world_mut().resource_mut::<Running>().teleport = true;
