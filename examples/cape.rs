@@ -90,7 +90,7 @@ fn setup(
         Transform::from_xyz(50.0, 0.0, 0.0),
         Pickable::IGNORE,
     ));
-    common::orbit_camera(&mut commands, Vec3::new(0.0, 1.0, 0.0), 3.8);
+    common::orbit_camera(&mut commands, Vec3::new(0.0, 1.0, 0.0), 3.2);
 }
 
 /// Gives the body's capsules and the garments their meshes once spawned.

@@ -5,7 +5,7 @@
 //! cargo run --release --example headless -- [--scene lab|assignment|cape] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--material cotton|E,RHO] \
-//!     [--rho 0.995] [--sphere] \
+//!     [--rho 0.995] [--refinement 16] [--sphere] \
 //!     [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] [--dump positions.csv] \
 //!     [--compute-threads N]
 //! ```
@@ -67,7 +67,8 @@ use cli::{CliError, Long, Parser, Short, value};
 const USAGE: &str = "usage: headless [OPTIONS]
 
   --scene lab|assignment|cape   the scene (default lab)
-  --method NAME            a preset (default chebyshev, the lab's): jacobi, chebyshev,
+  --method NAME            a preset (default chebyshev, the lab's; stiff in the cape
+                           scene, a game's default): jacobi, chebyshev,
                            chebyshev-auto, pbd, symplectic, linear-cg, linear-direct, pd,
                            pd-anderson, newton, exact, stiff
   --n N                    the lab cloth's side in vertices (default 21); in the cape
@@ -85,6 +86,7 @@ const USAGE: &str = "usage: headless [OPTIONS]
                            (12 kN/m, 0.25 kg/m²), or a stretch modulus E in
                            N/m and an areal density RHO in kg/m² (default: none)
   --rho RHO                Chebyshev's fixed spectral radius (default: the preset's)
+  --refinement R           stiff's most substeps x near a collider (default 16)
   --sphere                 add the scene's sphere (default: none)
   --penalty C              the assignment sphere's penalty stiffness (default 10)
   --exact-k                the linearly implicit methods' exact spring blocks
@@ -119,6 +121,10 @@ struct Options {
     mass: Option<f32>,
     material: Option<ClothMaterial>,
     rho: Option<f32>,
+    refinement: Option<u32>,
+    /// Whether `--method` was given (the cape scene's default is the
+    /// game's, `stiff`).
+    method_given: bool,
     sphere: bool,
     penalty: f32,
     exact_k: bool,
@@ -146,6 +152,8 @@ impl Default for Options {
             mass: None,
             material: None,
             rho: None,
+            refinement: None,
+            method_given: false,
             sphere: false,
             penalty: 10.0,
             exact_k: false,
@@ -174,7 +182,10 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                     }
                 };
             }
-            Long("method") => o.method = value(&mut parser, "--method")?,
+            Long("method") => {
+                o.method = value(&mut parser, "--method")?;
+                o.method_given = true;
+            }
             Long("n") => o.n = Some(value(&mut parser, "--n")?),
             Long("cloths") => o.cloths = value(&mut parser, "--cloths")?,
             Long("rows") => o.rows = value(&mut parser, "--rows")?,
@@ -192,6 +203,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                 )?)?)
             }
             Long("rho") => o.rho = Some(value(&mut parser, "--rho")?),
+            Long("refinement") => o.refinement = Some(value(&mut parser, "--refinement")?),
             Long("sphere") => o.sphere = true,
             Long("penalty") => o.penalty = value(&mut parser, "--penalty")?,
             Long("exact-k") => o.exact_k = true,
@@ -205,6 +217,9 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             Long("help") | Short('h') => return Err(CliError::Help),
             _ => return Err(arg.unexpected().into()),
         }
+    }
+    if o.scene == Scene::Cape && !o.method_given {
+        o.method = AnyMethod::default();
     }
     if o.iterations == Some(0) {
         return Err("--iterations must be at least 1".into());
@@ -226,6 +241,13 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             }
             method => method.with_iterations(k),
         };
+    }
+    match (&mut o.method, o.refinement) {
+        (AnyMethod::Xpbd(x), Some(r)) if r >= 1 => *x = x.with_max_refinement(r),
+        (_, Some(_)) => {
+            return Err("--refinement goes with stiff and is at least 1".into());
+        }
+        _ => {}
     }
     match (&mut o.method, o.rho) {
         (AnyMethod::Implicit(i), Some(rho)) => i.chebyshev = Some(Rho::Fixed(rho)),

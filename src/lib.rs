@@ -136,12 +136,18 @@
 //! ## Character cloth
 //! - [`ClothSkin`] / [`CharacterClothPlugin`] ([`character`]): a cloth held
 //!   near an animated shape, per vertex: max distance from its skinned
-//!   position, a backstop sphere behind it along the skinned normal, and an
-//!   anim drive towards it (after the step, every method). The pose comes
-//!   from the game or from [`Skinning`]: linear blend skinning of a
+//!   position, a backstop sphere behind it along the skinned normal, an
+//!   anim drive towards it, and tethers to its nearest pin (after the step
+//!   for every method; inside every substep for `stiff`,
+//!   [`solver::SkinInput`]). The pose comes from the game or from
+//!   [`Skinning`]: linear blend skinning of a
 //!   [`SkinnedMesh`](bevy::mesh::skinning::SkinnedMesh)'s joints on the CPU,
-//!   with the cloth's pins on the skin. `stiff`'s tethers (its preset) keep
-//!   a cape from stretching whatever its mass.
+//!   with the cloth's pins on the skin.
+//! - [`ClothInertia`] ([`character::inertia`]): how much of an anchor's
+//!   (the character's root) velocity and acceleration the cloth feels, and
+//!   a rigid move with the anchor when it jumps further than a teleport
+//!   distance in one step; every method. `examples/cape.rs` dresses a
+//!   character made in code in a cape and a skirt.
 //!
 //! ## Wind and air
 //! - [`Wind`] (a resource: mean velocity, deterministic gusts) /
@@ -283,6 +289,10 @@
 //!           attachments: vertices held by other entities → target · offset · rest
 //!                        (the pinned set follows attach/detach; a gone target releases)
 //!           ClothSkin: skinned pose from the joints (linear blend skinning); pins → pose
+//!           ClothInertia: anchor moved by Δ this step; jump > teleport distance?
+//!                         every vertex ← Δ·x, v ← Δ·v (no drag, no guard trip);
+//!                         else free x ← x + (1 − s_v)(Δx − x),
+//!                              v ← v + s_v(1 − s_a)·(change of the anchor's velocity at x)
 //! Forces:   with a Wind resource, for each cloth: per-triangle drag and lift from the
 //!           velocity relative to the wind; v ← v + h·F/(m + h·c) (c: drag's damping)
 //! Step:     for each cloth, with its method (in parallel across cloths)
@@ -308,7 +318,9 @@
 //!                                (newton: the same to 1e-5, at most 16 iterations)
 //!             (penalty spheres, planes, capsules, boxes act inside the step: forces, and stiffness in A; in pd,
 //!              projective terms with their stiffness on the matrix's diagonal; projection ones too, and
-//!              avian's primitives: projected in stiff's substeps, penalty terms in pd's and newton's objectives)
+//!              avian's primitives: projected in stiff's substeps, penalty terms in pd's and newton's objectives;
+//!              a ClothSkin's tethers, backstop and max distance: in stiff's substeps, the skin moved
+//!              through them from the last step's pose)
 //!             guard: state finite, stretch ≤ bound (or shrinking), speed ≤ bound, energy ≤ bound?
 //!                    if not: restore last good; retry as 2, 4, … substeps (policy
 //!                    Retry) or stop the cloth (policy Pause)
@@ -316,7 +328,7 @@
 //!           (Coulomb friction if the sphere has some); then planes, capsules, boxes,
 //!           and (feature avian) every avian Collider: out along the contact normal,
 //!           then friction takes ≤ μ·(normal impulse) from the tangential velocity
-//! SyncOut:  ClothSkin: drive towards the pose, out of the backstop, within max distance;
+//! SyncOut:  ClothSkin: drive towards the pose, tethers, out of the backstop, within max distance;
 //!           for each cloth: no method stepped it? status NoMethod (warn once);
 //!           the guard's check again after collision (restore, stop);
 //!           send ClothDiverged for each rejected step and ClothNotConverged for
@@ -519,7 +531,7 @@ pub mod prelude {
 /// | [`SphereCollisionPlugin`] | Resolves cloths against [`SphereCollider`]s. |
 /// | [`ShapeCollisionPlugin`] | Resolves cloths against [`PlaneCollider`]s (the ground), [`CapsuleCollider`]s and [`CuboidCollider`]s, with friction. |
 /// | [`WindPlugin`] | Per-triangle air drag and lift in a gusty [`Wind`], while that resource exists. |
-/// | [`CharacterClothPlugin`] | Cloths with a [`ClothSkin`]: skinned to joint entities, pins on the skin, max distance, backstop and anim drive. |
+/// | [`CharacterClothPlugin`] | Cloths with a [`ClothSkin`]: skinned to joint entities, pins on the skin, max distance, backstop, anim drive and tethers; cloths with a [`ClothInertia`]: velocity and acceleration scales, teleports. |
 /// | `avian::AvianCollisionPlugin` | (feature `avian`) Resolves cloths against the game's avian3d `Collider`s, one-way. |
 ///
 /// Leave out what a scene does not need, either by adding single plugins or
