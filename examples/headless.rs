@@ -494,23 +494,6 @@ fn run(o: &Options) -> Result<(), String> {
     }
 }
 
-/// The cape's step times, one per fixed step.
-fn record_cape(mut times: ResMut<StepTimes>, garments: Query<(&character::Garment, &ClothStats)>) {
-    for (garment, stats) in &garments {
-        if garment.name == "cape" {
-            times.0.push(stats.step_time);
-        }
-    }
-}
-
-/// Teleports the character 100 m at 6 s.
-fn teleport_at_six(time: Res<Time>, mut running: ResMut<character::Running>) {
-    let t = time.elapsed_secs_f64();
-    if running.teleports == 0 && t >= 6.0 {
-        running.teleport = true;
-    }
-}
-
 /// The cape scene: the character runs, turns, jumps and is teleported 100 m
 /// at 6 s; prints the cape's line and the body's count.
 fn run_cape(o: &Options) -> Result<(), String> {
@@ -522,70 +505,38 @@ fn run_cape(o: &Options) -> Result<(), String> {
     if !(2..=200).contains(&settings.cape_cols) {
         return Err("--n (the cape's columns) must be between 2 and 200".into());
     }
-    let mut app = App::new();
-    app.add_plugins((MinimalPlugins, ClothPlugins::default()))
-        .insert_resource(settings)
-        .add_plugins(character::CapeScenePlugin)
-        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
-        .init_resource::<StepTimes>()
-        .add_systems(
-            FixedUpdate,
-            (
-                teleport_at_six.in_set(ClothSystems::First),
-                record_cape.in_set(ClothSystems::Last),
-            ),
-        );
-    app.finish();
-    app.cleanup();
-    app.update();
-    for _ in 0..o.steps {
-        app.update();
-    }
-    let world = app.world_mut();
-    let mut garments = world.query::<(&character::Garment, &Cloth, &ClothStats)>();
-    let count = world.resource::<character::BodyPenetrations>().clone();
-    let teleports = world.resource::<character::Running>().teleports;
-    let mut times = world.resource::<StepTimes>().0.clone();
-    times.sort();
-    let median = times.get(times.len() / 2).copied().unwrap_or_default();
-    let worst = |name| {
-        count
-            .max_stretch
+    let run = character::run_headless(settings, o.steps, Some(6.0));
+    let stretch = |name| {
+        run.garments
             .iter()
-            .find(|(n, _)| *n == name)
-            .map_or(f32::NAN, |&(_, s)| s)
+            .find(|g| g.name == name)
+            .map_or(f32::NAN, |g| g.max_stretch)
     };
-    let mut failed = None;
-    let mut line = String::new();
-    for (garment, cloth, stats) in garments.iter(world) {
-        let finite = cloth.positions().iter().all(|p| p.is_finite());
-        if garment.name == "cape" {
-            line = format!(
-                "scene=Cape method={} vertices={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} skirt_max_stretch={:.4} finite={} status={:?}",
-                stats.method,
-                cloth.positions().len(),
-                stats.steps,
-                median.as_secs_f64() * 1e6,
-                stats.retried_steps,
-                worst("cape"),
-                worst("skirt"),
-                finite,
-                stats.status,
-            );
-        }
-        if !finite || stats.status != ClothStatus::Running || stats.retried_steps > 0 {
-            failed = Some(format!(
-                "the {} did not run cleanly: finite={finite} retried_steps={} status={:?}",
-                garment.name, stats.retried_steps, stats.status
-            ));
-        }
+    if let Some(cape) = run.garments.iter().find(|g| g.name == "cape") {
+        println!(
+            "scene=Cape method={} vertices={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} skirt_max_stretch={:.4} finite={} status={:?} teleports={} body_penetrations={} deepest_mm={:.2}",
+            cape.method,
+            cape.vertices,
+            cape.steps,
+            cape.median_step().as_secs_f64() * 1e6,
+            cape.retried_steps,
+            cape.max_stretch,
+            stretch("skirt"),
+            cape.finite,
+            cape.status,
+            run.teleports,
+            run.penetrations.count,
+            1e3 * run.penetrations.deepest
+        );
     }
-    println!(
-        "{line} teleports={teleports} body_penetrations={} deepest_mm={:.2}",
-        count.count,
-        1e3 * count.deepest
-    );
-    failed.map_or(Ok(()), Err)
+    match run.garments.iter().find(|g| !g.clean()) {
+        Some(g) => Err(format!(
+            "the {} did not run cleanly: finite={} retried_steps={} status={:?}",
+            g.name, g.finite, g.retried_steps, g.status
+        )),
+        None if run.garments.is_empty() => Err("the scene has no garments".into()),
+        None => Ok(()),
+    }
 }
 
 fn main() -> ExitCode {

@@ -551,3 +551,118 @@ fn apply_settings(
         inertia.acceleration_scale = wanted.acceleration_scale;
     }
 }
+
+/// One garment's result of a [`run_headless`].
+#[derive(Clone, Debug)]
+pub struct GarmentRun {
+    /// The garment's name.
+    pub name: &'static str,
+    /// Its method's name.
+    pub method: &'static str,
+    /// Its vertices.
+    pub vertices: usize,
+    /// Its steps.
+    pub steps: u64,
+    /// Its step times (solver step, collision excluded), one per step.
+    pub step_times: Vec<std::time::Duration>,
+    /// Its largest stretch at any step.
+    pub max_stretch: f32,
+    /// Steps the guard retried.
+    pub retried_steps: u64,
+    /// Whether every position is finite at the end.
+    pub finite: bool,
+    /// Its status at the end.
+    pub status: ClothStatus,
+}
+
+impl GarmentRun {
+    /// Whether it ran cleanly: finite, running, nothing retried.
+    pub fn clean(&self) -> bool {
+        self.finite && self.status == ClothStatus::Running && self.retried_steps == 0
+    }
+
+    /// The median step time.
+    pub fn median_step(&self) -> std::time::Duration {
+        let mut times = self.step_times.clone();
+        times.sort();
+        times.get(times.len() / 2).copied().unwrap_or_default()
+    }
+}
+
+/// What a [`run_headless`] measured.
+#[derive(Clone, Debug)]
+pub struct CapeRun {
+    /// The cape, then the skirt.
+    pub garments: Vec<GarmentRun>,
+    /// Teleports done.
+    pub teleports: u32,
+    /// Garment vertices found inside a body capsule, and the deepest.
+    pub penetrations: BodyPenetrations,
+}
+
+/// Step times per garment, one per fixed step.
+#[derive(Resource, Default)]
+struct GarmentTimes(Vec<(&'static str, std::time::Duration)>);
+
+fn record_times(mut times: ResMut<GarmentTimes>, garments: Query<(&Garment, &ClothStats)>) {
+    for (garment, stats) in &garments {
+        times.0.push((garment.name, stats.step_time));
+    }
+}
+
+/// Runs the scene without a window for `steps` fixed steps (one per
+/// update), teleporting the character at `teleport_at` seconds if given.
+pub fn run_headless(settings: CapeSettings, steps: usize, teleport_at: Option<f32>) -> CapeRun {
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, ClothPlugins::default()))
+        .insert_resource(settings)
+        .add_plugins(CapeScenePlugin)
+        .insert_resource(bevy::time::TimeUpdateStrategy::FixedTimesteps(1))
+        .init_resource::<GarmentTimes>()
+        .add_systems(FixedUpdate, record_times.in_set(ClothSystems::Last));
+    app.finish();
+    app.cleanup();
+    app.update();
+    for step in 0..steps {
+        if teleport_at.is_some_and(|t| step as f32 * DT as f32 >= t) {
+            let mut running = app.world_mut().resource_mut::<Running>();
+            if running.teleports == 0 && !running.teleport {
+                running.teleport = true;
+            }
+        }
+        app.update();
+    }
+    let world = app.world_mut();
+    let penetrations = world.resource::<BodyPenetrations>().clone();
+    let teleports = world.resource::<Running>().teleports;
+    let times = std::mem::take(&mut world.resource_mut::<GarmentTimes>().0);
+    let mut query = world.query::<(&Garment, &Cloth, &ClothStats)>();
+    let mut garments: Vec<GarmentRun> = query
+        .iter(world)
+        .map(|(garment, cloth, stats)| GarmentRun {
+            name: garment.name,
+            method: stats.method,
+            vertices: cloth.positions().len(),
+            steps: stats.steps,
+            step_times: times
+                .iter()
+                .filter(|(name, _)| *name == garment.name)
+                .map(|&(_, t)| t)
+                .collect(),
+            max_stretch: penetrations
+                .max_stretch
+                .iter()
+                .find(|(name, _)| *name == garment.name)
+                .map_or(0.0, |&(_, s)| s),
+            retried_steps: stats.retried_steps,
+            finite: cloth.positions().iter().all(|p| p.is_finite()),
+            status: stats.status.clone(),
+        })
+        .collect();
+    garments.sort_by_key(|g| g.name != "cape");
+    CapeRun {
+        garments,
+        teleports,
+        penetrations,
+    }
+}

@@ -2,7 +2,7 @@
 //! entities by linear blend skinning, held to its skinned pose.
 
 use bevy::ecs::schedule::common_conditions::any_with_component;
-use bevy::math::{Affine3A, Mat4, Vec3A};
+use bevy::math::{Affine3A, Mat3A, Mat4, Vec3A};
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Mesh, VertexAttributeValues};
 use bevy::prelude::*;
@@ -40,6 +40,8 @@ pub struct ClothSkin {
     /// The pose's positions at the last step's end (where the skin moves
     /// from through `stiff`'s substeps).
     pub(crate) previous: Vec<bevy::math::Vec3A>,
+    /// Whether a joint went and the skin was released.
+    released: bool,
 }
 
 impl ClothSkin {
@@ -51,6 +53,7 @@ impl ClothSkin {
             skinning: None,
             tethers: SkinTethers::default(),
             previous: Vec::new(),
+            released: false,
         }
     }
 
@@ -62,6 +65,7 @@ impl ClothSkin {
             skinning: Some(skinning),
             tethers: SkinTethers::default(),
             previous: Vec::new(),
+            released: false,
         }
     }
 }
@@ -70,7 +74,8 @@ impl ClothSkin {
 /// [`SkinnedMesh`]: a vertex's skinned position is
 /// `Σ wₖ · (Jₖ · Bₖ⁻¹) · p`, with `p` its bind-pose position, `Jₖ` the
 /// global transform of its joint `k` and `Bₖ⁻¹` that joint's inverse bind
-/// pose (its normal likewise, normalised), computed on the CPU for the
+/// pose (its normal by the inverse transpose of that blend, normalised, as
+/// Bevy's vertex shader moves it), computed on the CPU for the
 /// cloth's vertices only.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Skinning {
@@ -185,16 +190,25 @@ impl Skinning {
         let vertices = self.influences.iter().zip(&self.bind);
         let out = pose.positions.iter_mut().zip(pose.normals.iter_mut());
         for ((influences, &(p, normal)), (x, nrm)) in vertices.zip(out) {
-            let (mut sx, mut sn) = (Vec3A::ZERO, Vec3A::ZERO);
+            // As Bevy's vertex shader does: blend the joint matrices, move
+            // the position by the blend and the normal by its inverse
+            // transpose (right under non-uniform scale, where moving the
+            // normal by the blend is not).
+            let (mut m, mut t) = (Mat3A::ZERO, Vec3A::ZERO);
             for &(k, w) in influences {
                 if w != 0.0 {
-                    let m = &self.joint_matrices[usize::from(k)];
-                    sx += w * m.transform_point3a(p);
-                    sn += w * m.transform_vector3a(normal);
+                    let joint = &self.joint_matrices[usize::from(k)];
+                    m += joint.matrix3 * w;
+                    t += joint.translation * w;
                 }
             }
-            *x = sx;
-            *nrm = sn.normalize_or(normal);
+            *x = m * p + t;
+            let det = m.determinant();
+            *nrm = if det != 0.0 && det.is_finite() {
+                (m.inverse().transpose() * normal).normalize_or(normal)
+            } else {
+                normal
+            };
         }
         true
     }
@@ -243,22 +257,45 @@ impl Plugin for CharacterClothPlugin {
 
 /// Skins every cloth with a [`Skinning`], and moves the pins of every
 /// cloth with a pose to their skinned positions, with the velocity of that
-/// move.
+/// move. A cloth one of whose joints is gone (despawned, or without a
+/// transform) has its skin and the vertices pinned on it released, with a
+/// warning: it falls free, as a gone attachment's vertices do.
 pub(super) fn skin_cloths(
     time: Res<Time>,
     helper: TransformHelper,
-    mut cloths: Query<(&mut Cloth, &mut ClothSkin)>,
+    mut cloths: Query<(Entity, &mut Cloth, &mut ClothSkin)>,
 ) {
     let dt = time.delta_secs();
-    for (mut cloth, mut skin) in &mut cloths {
-        let ClothSkin { pose, skinning, .. } = &mut *skin;
-        if let Some(skinning) = skinning {
+    for (entity, mut cloth, mut skin) in &mut cloths {
+        let cloth = &mut *cloth;
+        let ClothSkin {
+            pose,
+            skinning,
+            previous,
+            released,
+            ..
+        } = &mut *skin;
+        if let Some(skinned) = skinning {
             let global = |e| helper.compute_global_transform(e).ok().map(|g| g.affine());
-            if !skinning.pose(global, pose) {
+            if !skinned.pose(global, pose) {
+                warn!(
+                    "cloth {entity}: a joint of its skin is gone (or has no transform); the \
+                     skin and the vertices pinned on it are released"
+                );
+                *skinning = None;
+                *released = true;
+                pose.positions.clear();
+                pose.normals.clear();
+                previous.clear();
+                cloth.own_pins.clear();
+                let held = cloth.attached.clone();
+                if let Err(error) = cloth.model.set_pins(held) {
+                    // Unreachable: the attached vertices are the cloth's.
+                    warn!("cloth {entity}: pins not released: {error}");
+                }
                 continue;
             }
         }
-        let cloth = &mut *cloth;
         if !cloth.initialized || pose.positions.len() != cloth.model.vertex_count() {
             continue;
         }
@@ -289,6 +326,10 @@ fn hold_to_skin(
         }
         let cloth = &mut *cloth;
         let skin = &mut *skin;
+        // A skin released when its joint went: nothing to hold to.
+        if skin.released {
+            continue;
+        }
         match skin
             .constraints
             .validate(cloth.model.vertex_count(), &skin.pose)

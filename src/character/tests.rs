@@ -20,6 +20,24 @@ fn cape_model(n: usize, mass: f32) -> ClothModel {
     .unwrap()
 }
 
+/// Steps `state` `steps` times with `method`, holding it to `pose` by `c`
+/// after each step, and hands each step's result to `each`.
+fn step_and_hold<M: Method>(
+    method: M,
+    ws: &mut M::Workspace,
+    (model, params, pose, c): (&ClothModel, &StepParams, &SkinPose, &SkinConstraints),
+    state: &mut ClothState,
+    steps: usize,
+    mut each: impl FnMut(usize, &ClothState),
+) {
+    let mut tethers = SkinTethers::default();
+    for step in 0..steps {
+        method.step(model, state, params, &[], ws).unwrap();
+        apply_skin(model, state, pose, c, &mut tethers, params.dt as f32);
+        each(step, state);
+    }
+}
+
 /// A 2 m cape of 1.5 kg in the x–y plane, its top row pinned, and its rest
 /// shape as the skinned pose (normals +z).
 fn cape(n: usize) -> (ClothModel, ClothState, SkinPose) {
@@ -186,30 +204,25 @@ fn a_cape_swinging_under_stiff_keeps_within_its_max_distance_and_behind_nothing(
     let c = SkinConstraints::free(n)
         .with_max_distance(|i| 0.2 * -rest[i].y)
         .with_backstop(50.0, |_| 0.05);
-    let method = XpbdSolver::STIFF;
-    let mut ws = XpbdWorkspace::default();
     let mut worst: f32 = 0.0;
-    for step in 0..240 {
-        method
-            .step(&model, &mut state, &params, &[], &mut ws)
-            .unwrap();
-        apply_skin(
-            &model,
-            &mut state,
-            &pose,
-            &c,
-            &mut SkinTethers::default(),
-            params.dt as f32,
-        );
-        for i in 0..n {
-            let off = (state.positions[i] - pose.positions[i]).length();
-            assert!(
-                off <= c.max_distance[i] + 1e-5,
-                "step {step} vertex {i}: {off}"
-            );
-            worst = worst.max(-state.positions[i].z);
-        }
-    }
+    let mut ws = XpbdWorkspace::default();
+    step_and_hold(
+        XpbdSolver::STIFF,
+        &mut ws,
+        (&model, &params, &pose, &c),
+        &mut state,
+        240,
+        |step, state| {
+            for i in 0..n {
+                let off = (state.positions[i] - pose.positions[i]).length();
+                assert!(
+                    off <= c.max_distance[i] + 1e-5,
+                    "step {step} vertex {i}: {off}"
+                );
+                worst = worst.max(-state.positions[i].z);
+            }
+        },
+    );
     // The backstop is 5 cm behind (its 50 m spheres curve away by under 2 mm
     // within the max distance): nothing went further back.
     assert!(worst <= 0.06, "{worst}");
@@ -235,22 +248,16 @@ fn tethers_hold_a_heavy_cape_to_its_length_whatever_the_method() {
         let mut state = state.clone();
         let c = SkinConstraints::free(n);
         let c = if tethered { c.with_tethers(1.02) } else { c };
-        let mut tethers = SkinTethers::default();
         let mut ws = ImplicitWorkspace::default();
         let method = ImplicitSolver::chebyshev(32, 0.995);
-        for _ in 0..300 {
-            method
-                .step(&model, &mut state, &params, &[], &mut ws)
-                .unwrap();
-            apply_skin(
-                &model,
-                &mut state,
-                &pose,
-                &c,
-                &mut tethers,
-                params.dt as f32,
-            );
-        }
+        step_and_hold(
+            method,
+            &mut ws,
+            (&model, &params, &pose, &c),
+            &mut state,
+            300,
+            |_, _| {},
+        );
         assert!(state.is_finite());
         -state.positions.iter().map(|p| p.y).fold(0.0, f32::min)
     };
@@ -476,4 +483,104 @@ mod inertia {
         );
         assert!(ok.with_teleport(f32::NAN).validate().is_err());
     }
+}
+
+#[test]
+fn skinned_positions_and_normals_match_bevys_vertex_shader() {
+    // Bevy's `skinning.wgsl`: `model = Σ wₖ·joint_matrices[k]` (each the
+    // joint's global transform times its inverse bind pose, as `Mat4`),
+    // position `model · (p, 1)`, normal
+    // `normalize(inverse_transpose_3x3(model) · n)`. Reproduced here in
+    // `Mat4` arithmetic, apart from `Skinning::pose`'s.
+    use bevy::math::{Mat3, Mat4, Quat, Vec4};
+    use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+    use bevy::mesh::{Mesh, MeshBuilder, Meshable, VertexAttributeValues};
+    use bevy::prelude::{Entity, Plane3d, Vec2};
+
+    use super::Skinning;
+
+    let mut mesh = Plane3d::new(Vec3::Z, Vec2::splat(1.0))
+        .mesh()
+        .subdivisions(5)
+        .build();
+    let Some(VertexAttributeValues::Float32x3(positions)) =
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION).cloned()
+    else {
+        panic!("a plane has positions");
+    };
+    let joints: Vec<[u16; 4]> = positions.iter().map(|_| [0, 1, 2, 0]).collect();
+    let weights: Vec<[f32; 4]> = positions
+        .iter()
+        .map(|p| {
+            let a = (1.0 - p[1]) / 2.0;
+            let b = (1.0 + p[0]) / 4.0;
+            [1.0 - a - b, a, b, 0.0]
+        })
+        .collect();
+    mesh.insert_attribute(
+        Mesh::ATTRIBUTE_JOINT_INDEX,
+        VertexAttributeValues::Uint16x4(joints.clone()),
+    );
+    mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights.clone());
+    let model = ClothBuilder::from_mesh(&mesh).unwrap().build().unwrap();
+    let entities: Vec<Entity> = (0..3)
+        .map(|i| Entity::from_raw_u32(i + 1).unwrap())
+        .collect();
+    let skinned = SkinnedMesh {
+        inverse_bindposes: Default::default(),
+        joints: entities.clone(),
+    };
+    let bind = [
+        Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0)),
+        Mat4::from_rotation_z(0.3) * Mat4::from_translation(Vec3::new(0.0, 1.0, 0.0)),
+        Mat4::from_scale(Vec3::new(1.0, 0.5, 2.0)),
+    ];
+    let bindposes = SkinnedMeshInverseBindposes::from(bind.to_vec());
+    let mut skinning = Skinning::from_mesh(&mesh, &skinned, &bindposes, &model).unwrap();
+    // Joints turned, moved and scaled unevenly.
+    let globals = [
+        Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.0, 1.3, 0.8),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(2.0, 1.0, -1.0),
+        ),
+        Affine3A::from_rotation_translation(Quat::from_rotation_x(-0.9), Vec3::new(0.5, 3.0, 0.0)),
+        Affine3A::from_scale_rotation_translation(
+            Vec3::splat(1.5),
+            Quat::from_rotation_z(1.2),
+            Vec3::new(-1.0, 0.0, 4.0),
+        ),
+    ];
+    let global = |e: Entity| entities.iter().position(|&j| j == e).map(|k| globals[k]);
+    let mut pose = SkinPose::default();
+    assert!(skinning.pose(global, &mut pose));
+    let Some(VertexAttributeValues::Float32x3(normals)) =
+        mesh.attribute(Mesh::ATTRIBUTE_NORMAL).cloned()
+    else {
+        panic!("a plane has normals");
+    };
+    let map = model.welded_from();
+    let mut checked = 0;
+    for j in 0..positions.len() {
+        let c = map.map_or(j, |m| m[j] as usize);
+        let mut m = Mat4::ZERO;
+        for k in 0..4 {
+            let joint = usize::from(joints[j][k]);
+            m += (Mat4::from(globals[joint]) * bind[joint]) * weights[j][k];
+        }
+        let p = m * Vec4::from((Vec3::from(positions[j]), 1.0));
+        let n = (Mat3::from_mat4(m).inverse().transpose() * Vec3::from(normals[j])).normalize();
+        assert!(
+            (Vec3::from(pose.positions[c]) - p.truncate()).length() < 1e-5,
+            "{j}: {} vs {p}",
+            pose.positions[c]
+        );
+        assert!(
+            (Vec3::from(pose.normals[c]) - n).length() < 1e-5,
+            "{j}: {} vs {n}",
+            pose.normals[c]
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, positions.len());
 }

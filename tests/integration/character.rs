@@ -40,8 +40,9 @@ fn skinned_cape() -> Mesh {
     mesh
 }
 
-#[test]
-fn a_skinned_cape_follows_its_joints_pins_on_the_skin_within_its_max_distance() {
+/// An app with the skinned cape on a shoulders and a hips joint entity,
+/// `stiff`, at 60 Hz: (app, cloth, shoulders, hips, model, constraints).
+fn skinned_cape_app() -> (App, Entity, Entity, Entity, ClothModel, SkinConstraints) {
     let mut app = app();
     app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
     let mesh = skinned_cape();
@@ -75,6 +76,14 @@ fn a_skinned_cape_follows_its_joints_pins_on_the_skin_within_its_max_distance() 
             Transform::default(),
         ))
         .id();
+    (app, cloth, shoulders, hips, model, constraints)
+}
+
+#[test]
+fn a_skinned_cape_follows_its_joints_pins_on_the_skin_within_its_max_distance() {
+    let (mut app, cloth, shoulders, hips, model, constraints) = skinned_cape_app();
+    let rest: Vec<Vec3> = model.topology().rest_positions().to_vec();
+    let n = model.vertex_count();
     // The character walks along +x at 2 m/s and its hips swing.
     for step in 0..120 {
         let t = step as f32 / 60.0;
@@ -258,4 +267,28 @@ fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() 
     for &(name, stretch) in &count.max_stretch {
         assert!(stretch < 0.1, "{name}: {stretch}");
     }
+}
+
+#[test]
+fn a_despawned_joint_releases_the_skin_and_its_pins_and_the_cape_falls() {
+    let (mut app, cloth, _, hips, model, _) = skinned_cape_app();
+    run_steps(&mut app, 30);
+    assert!(!model.pins().is_empty());
+    app.world_mut().despawn(hips);
+    run_steps(&mut app, 1);
+    let top = |app: &App| {
+        positions(app, cloth)
+            .iter()
+            .map(|p| p.y)
+            .fold(f32::NEG_INFINITY, f32::max)
+    };
+    let before = top(&app);
+    run_steps(&mut app, 30);
+    let skin = app.world().get::<ClothSkin>(cloth).unwrap();
+    assert!(skin.skinning.is_none());
+    let c = app.world().get::<Cloth>(cloth).unwrap();
+    assert!(c.model().pins().is_empty(), "{:?}", c.model().pins());
+    assert!(stats(&app, cloth).is_running());
+    // Released, the collar falls with the rest: half a second of free fall.
+    assert!(top(&app) < before - 0.5, "{} vs {before}", top(&app));
 }

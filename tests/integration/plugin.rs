@@ -129,11 +129,11 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
     // Core (5) + seven methods + the no-method diagnostic + sphere and shape
-    // gathering and projection + wind + character cloth's skinning and
-    // holding + counter (+ avian gathering and projection with the `avian`
-    // feature).
+    // gathering and projection + wind + character cloth's skinning, inertia
+    // and holding + counter (+ avian gathering and projection with the
+    // `avian` feature).
     let avian = usize::from(cfg!(feature = "avian"));
-    assert_eq!(fixed_system_count(&mut full), 21 + 2 * avian);
+    assert_eq!(fixed_system_count(&mut full), 22 + 2 * avian);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.

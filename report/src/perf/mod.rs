@@ -25,11 +25,13 @@
 //! divergence guard's default check ([`GuardBounds::default`](bevy_cloth::solver::guard::GuardBounds::default)) runs on the
 //! result: a timed step the guard would have rejected is marked.
 
+mod character;
 #[allow(unsafe_code)]
 mod machine;
 mod page;
 mod sweep;
 
+pub use character::{CapeRow, cape_rows};
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
 pub use sweep::{
@@ -63,6 +65,10 @@ pub struct PerfConfig {
     pub stream_len: usize,
     /// A table from `compare/silk` to include, if the file exists.
     pub silk_table: Option<PathBuf>,
+    /// Columns of the character scene's capes (8/5 as many rows).
+    pub cape_sizes: Vec<usize>,
+    /// Fixed steps of each character-scene run (60 per second).
+    pub cape_steps: usize,
     /// Only the sweep's methods whose name starts with this (and nothing
     /// else: no page is written), for profiling one case.
     pub only: Option<String>,
@@ -83,6 +89,8 @@ impl PerfConfig {
             cg_side: 100,
             sphere_sides: vec![101, 201],
             stream_len: 1 << 24,
+            cape_sizes: vec![20, 50],
+            cape_steps: 600,
             only: None,
         }
     }
@@ -99,6 +107,8 @@ impl PerfConfig {
             cg_side: 6,
             sphere_sides: vec![11],
             stream_len: 1 << 12,
+            cape_sizes: vec![4],
+            cape_steps: 20,
             silk_table: None,
             only: None,
         }
@@ -195,6 +205,7 @@ mod tests {
             "## Many cloths",
             "## The frame",
             "## Sparse CG",
+            "## Character cloth",
             "## The limit",
         ] {
             assert!(md.contains(heading), "{heading} missing:\n{md}");
