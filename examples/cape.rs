@@ -19,7 +19,10 @@
 //! camera follows it. `--cols` sets the cape's columns (it has 8/5 as many
 //! rows: 50 gives the perf page's 4,000-vertex cape).
 
+// Shared with `headless --scene cape`, whose run without a window this
+// example does not use.
 #[path = "character/mod.rs"]
+#[allow(dead_code)]
 mod character;
 #[path = "cli/mod.rs"]
 mod cli;
