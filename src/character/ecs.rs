@@ -24,13 +24,17 @@ use crate::model::ClothModel;
 /// [`pose`](Self::pose) every step from the joints' global transforms
 /// (before the step), moves the cloth's pinned vertices to their skinned
 /// positions (so a collar follows the body, and `stiff` moves it smoothly
-/// through its substeps), and after the step applies the constraints.
-/// Without it, the game writes `pose` itself (from its own animation), and
-/// the pins follow that. Either way the pins are on the skin, not where
-/// the entity's transform would put them.
+/// through its substeps), and after the step applies the constraints
+/// (`stiff` applies them in every substep too, the skin moved from the last
+/// step's pose to this one's through them). Without it, the game writes
+/// `pose` itself (from its own animation), and the pins follow that. Either
+/// way the pins are on the skin, not where the entity's transform would
+/// put them. If a joint entity goes, the skin and the vertices pinned on it
+/// are released with a warning (the cloth falls free); insert a new
+/// `ClothSkin` to skin it again.
 #[derive(Component, Clone, Debug)]
 pub struct ClothSkin {
-    /// Max distance, backstop and anim drive per vertex.
+    /// Max distance, backstop, anim drive and tethers.
     pub constraints: SkinConstraints,
     /// The skinned pose of this step, one entry per cloth vertex.
     pub pose: SkinPose,

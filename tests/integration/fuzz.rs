@@ -83,7 +83,7 @@ fn act(app: &mut App, rng: &mut Rng) -> usize {
         .iter(world)
         .collect();
     let cloth = (!cloths.is_empty()).then(|| rng.pick(&cloths));
-    let action = rng.below(14);
+    let action = rng.below(16);
     match action {
         0 | 1 => {
             // A new cloth: a grid of 2..8 per side, random pins, perhaps a
@@ -233,6 +233,40 @@ fn act(app: &mut App, rng: &mut Rng) -> usize {
                 if rng.chance(2) {
                     world.get_mut::<Cloth>(e).unwrap().reset();
                 }
+            }
+        }
+        13 => {
+            // Inertia: any scales and teleport distance, anchored to the
+            // cloth or to any other entity (which may be despawned later).
+            if let Some(e) = cloth {
+                let mut inertia = ClothInertia::default()
+                    .with_scales(rng.pick(&NUMBERS), rng.pick(&NUMBERS))
+                    .with_teleport(rng.pick(&NUMBERS));
+                if !others.is_empty() && rng.chance(2) {
+                    inertia = inertia.with_anchor(rng.pick(&others));
+                }
+                world.entity_mut(e).insert(inertia);
+            }
+        }
+        14 => {
+            // A skin on where the cloth is now, with any constraints (or a
+            // list of the wrong length).
+            if let Some(e) = cloth {
+                let x = world.get::<Cloth>(e).unwrap().positions().to_vec();
+                let n = x.len() + usize::from(rng.chance(8));
+                let pose = SkinPose {
+                    normals: vec![Vec3A::Y; x.len()],
+                    positions: x,
+                };
+                let (r, d) = (rng.pick(&NUMBERS), rng.pick(&NUMBERS));
+                let constraints = SkinConstraints::free(n)
+                    .with_max_distance(|_| r)
+                    .with_backstop(rng.pick(&NUMBERS), |_| d)
+                    .with_drive(rng.pick(&NUMBERS))
+                    .with_tethers(rng.pick(&NUMBERS));
+                world
+                    .entity_mut(e)
+                    .insert(ClothSkin::new(constraints, pose));
             }
         }
         _ => {
