@@ -134,7 +134,10 @@ pub(super) fn carry(
         inertia.last = Some((now, Affine3A::IDENTITY));
         return Carried::Nothing;
     };
-    if dt <= 0.0 {
+    // An anchor scaled to nothing (hidden) or not finite has no motion to
+    // read: the cloth waits for it where it last was.
+    let det = now.matrix3.determinant();
+    if dt <= 0.0 || !now.is_finite() || !det.is_normal() {
         return Carried::Nothing;
     }
     let motion = now * before.inverse();

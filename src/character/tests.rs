@@ -465,6 +465,27 @@ mod inertia {
     }
 
     #[test]
+    fn an_anchor_scaled_to_nothing_or_not_finite_moves_nothing() {
+        let mut cloth = placed(4);
+        let before = cloth.state.clone();
+        let mut inertia = ClothInertia::default()
+            .with_scales(0.0, 0.0)
+            .with_teleport(1.0);
+        let hidden = Affine3A::from_scale(Vec3::ZERO);
+        let nan = Affine3A::from_translation(Vec3::NAN);
+        for now in [at(0.0), hidden, at(0.1), nan, at(0.2)] {
+            carry(&mut inertia, &mut cloth, None, now, 0.1);
+            assert!(cloth.state.is_finite());
+            assert!(cloth.last_good.is_finite());
+        }
+        // The hidden and the NaN anchors were skipped: it was carried from
+        // 0 to 0.1 and from 0.1 to 0.2.
+        let free = (0..16).find(|&i| !cloth.model.pinned()[i]).unwrap();
+        let moved = cloth.state.positions[free].x - before.positions[free].x;
+        assert!((moved - 0.2).abs() < 1e-5, "{moved}");
+    }
+
+    #[test]
     fn bad_inertia_is_a_typed_error() {
         let ok = ClothInertia::default();
         assert_eq!(ok.validate(), Ok(()));
