@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Fails unless a PNG screenshot shows the cloth.
 
-Usage: check_png.py FILE.png [red|blue]. Standard library only: decodes
+Usage: check_png.py FILE.png [red|blue|redblue]. Standard library only: decodes
 8-bit RGB/RGBA PNGs, then checks that the image is not blank (many distinct
 colours) and that enough pixels have the cloth's checker colour: red for
-the lab (the default), blue for the flag (whose capsule is red).
+the lab (the default), blue for the flag (whose capsule is red), red or
+blue for the cape example (its cape and skirt).
 """
 import struct
 import sys
@@ -63,8 +64,12 @@ def main():
     elif colour == "blue":
         def hue(r, g, b):
             return b > r + 50 and b > g + 30
+    elif colour == "redblue":
+        # The cape example: a red cape (edge-on at times) and a blue skirt.
+        def hue(r, g, b):
+            return (r > g + 50 and r > b + 50) or (b > r + 50 and b > g + 30)
     else:
-        sys.exit(f"unknown colour {colour}: red or blue")
+        sys.exit(f"unknown colour {colour}: red, blue or redblue")
     width, height, channels, rows = decode(path)
     colours, matching = set(), 0
     for line in rows:

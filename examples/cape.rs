@@ -96,15 +96,22 @@ fn setup(
     common::orbit_camera(&mut commands, Vec3::new(0.0, 1.0, 0.0), 3.2);
 }
 
-/// Gives the body's capsules and the garments their meshes once spawned.
+/// Gives the body's capsules and the garments their meshes once spawned,
+/// and the joints the visibility their drawn children inherit.
 fn dress(
     mut commands: Commands,
+    rig: Option<Res<Rig>>,
     parts: Query<(Entity, &CapsuleCollider), Added<BodyPart>>,
     garments: Query<(Entity, &Cloth, &Garment), Added<Garment>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     mut images: ResMut<Assets<Image>>,
 ) {
+    if let Some(rig) = rig.filter(|r| r.is_added()) {
+        for joint in rig.joints() {
+            commands.entity(joint).insert(Visibility::default());
+        }
+    }
     for (entity, capsule) in &parts {
         commands.entity(entity).insert((
             Mesh3d(meshes.add(Capsule3d::new(capsule.radius, 2.0 * capsule.half_length))),

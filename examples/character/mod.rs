@@ -132,6 +132,19 @@ pub struct Rig {
     thighs: [Entity; 2],
 }
 
+impl Rig {
+    /// Every joint entity, the root first.
+    pub fn joints(&self) -> [Entity; 5] {
+        [
+            self.root,
+            self.pelvis,
+            self.spine,
+            self.thighs[0],
+            self.thighs[1],
+        ]
+    }
+}
+
 /// The character's run: time, place on the circle, direction.
 #[derive(Resource, Clone, Debug)]
 pub struct Running {
