@@ -51,7 +51,10 @@
 //! the usage and exits with status 0; bad arguments print the usage and exit
 //! with status 2.
 
+// The cape scene, shared with `examples/cape.rs` (whose window parts this
+// example does not use).
 #[path = "character/mod.rs"]
+#[allow(dead_code)]
 mod character;
 #[path = "cli/mod.rs"]
 mod cli;
