@@ -99,8 +99,9 @@ impl Skinning {
     /// welded or not): each cloth vertex takes the joints, weights,
     /// position and normal of the first mesh vertex that became it. The
     /// mesh needs positions, normals, joint indices (`Uint16x4`) and joint
-    /// weights (`Float32x4`); a joint index past `skinned.joints` or a mesh
-    /// that does not match the cloth is a typed error.
+    /// weights (`Float32x4`); a joint index past `skinned.joints`, a weight
+    /// that is negative or NaN, or a mesh that does not match the cloth is a
+    /// typed error.
     pub fn from_mesh(
         mesh: &Mesh,
         skinned: &SkinnedMesh,
@@ -138,6 +139,9 @@ impl Skinning {
                 Some(map) => map.get(j).map(|&c| c as usize),
                 None => (j < n).then_some(j),
             };
+            if weights[j].iter().any(|w| w.is_nan() || *w < 0.0) {
+                return Err(SkinError::Weight);
+            }
             let Some(c) = c.filter(|&c| c < n && !seen[c]) else {
                 continue;
             };

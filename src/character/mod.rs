@@ -218,6 +218,9 @@ pub enum SkinError {
          match the cloth"
     )]
     Mesh,
+    /// A joint weight of the skinned mesh is negative or NaN.
+    #[error("a joint weight of the skinned mesh is negative or NaN")]
+    Weight,
     /// A joint index past the skinned mesh's joints or inverse bind poses.
     #[error("a joint index is past the skinned mesh's joints")]
     Joint,

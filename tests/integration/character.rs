@@ -147,6 +147,26 @@ fn a_mesh_without_skin_or_a_skin_of_another_size_is_a_typed_answer() {
         Skinning::from_mesh(&mesh, &one, &bindposes, &model),
         Err(SkinError::Joint)
     );
+    // A weight that is negative or NaN.
+    for bad in [-0.5, f32::NAN] {
+        let mut weighted = mesh.clone();
+        let Some(VertexAttributeValues::Float32x4(w)) =
+            weighted.attribute_mut(Mesh::ATTRIBUTE_JOINT_WEIGHT)
+        else {
+            panic!("the cape has weights");
+        };
+        w[3][1] = bad;
+        let two = SkinnedMesh {
+            inverse_bindposes: Handle::default(),
+            joints: vec![Entity::PLACEHOLDER; 2],
+        };
+        let bindposes = SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY; 2]);
+        assert_eq!(
+            Skinning::from_mesh(&weighted, &two, &bindposes, &model),
+            Err(SkinError::Weight),
+            "{bad}"
+        );
+    }
     // Constraints for another cloth: skipped with a warning, the cloth runs.
     let mut app = app();
     let cloth = app
