@@ -533,7 +533,7 @@ fn skinned_positions_and_normals_match_bevys_vertex_shader() {
     let weights: Vec<[f32; 4]> = positions
         .iter()
         .map(|p| {
-            let a = (1.0 - p[1]) / 2.0;
+            let a = (1.0 - p[1]) / 4.0;
             let b = (1.0 + p[0]) / 4.0;
             [1.0 - a - b, a, b, 0.0]
         })
