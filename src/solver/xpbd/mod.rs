@@ -434,7 +434,7 @@ impl Method for XpbdSolver {
             }
             if let (Some(s), Some(start)) = (skin, skin_start) {
                 let t = substep as f32 / substeps as f32;
-                let teleport = (TELEPORT * model.size()).powi(2);
+                // The pins' teleport threshold, taken above.
                 for ((now, &end), &start) in ws.skin_now.iter_mut().zip(s.positions).zip(start) {
                     *now = if end.distance_squared(start) < teleport {
                         start + (end - start) * t
