@@ -460,6 +460,7 @@ use bevy::prelude::FixedUpdate;
 pub use character::{
     CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
 };
+pub use collision::{SelfCollision, SelfCollisionError};
 pub use ecs::{
     Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothColliders,
     ClothCorePlugin, ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothMethods,
@@ -486,6 +487,7 @@ pub mod prelude {
     pub use crate::character::{
         CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
     };
+    pub use crate::collision::SelfCollision;
     pub use crate::ecs::{
         Attachment, CapsuleCollider, Cloth, ClothAerodynamics, ClothAttachments, ClothCorePlugin,
         ClothDiverged, ClothFollowSystems, ClothFromMesh, ClothGuard, ClothNotConverged,

@@ -403,6 +403,7 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
                         spheres: &spheres,
                         contacts: &scenario.contacts,
                         skin: None,
+                        self_collision: None,
                     };
                     method.step_with(input, s, &mut ws)
                 },

@@ -19,6 +19,10 @@ use bevy::math::{DVec3, Vec3A};
 
 use crate::model::{ClothModel, ClothState};
 
+pub mod self_contact;
+
+pub use self_contact::{SelfCollision, SelfCollisionError};
+
 /// # Penalty
 ///
 /// A vertex at `x` within contact distance `r` (sphere radius plus particle

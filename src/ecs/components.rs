@@ -529,6 +529,9 @@ pub struct ClothStats {
     /// Vertex–collider contacts in the last step: vertices inside a penalty
     /// sphere after the step, plus vertices a projection sphere moved.
     pub contacts: u32,
+    /// Pairs of the cloth's own vertices held apart in the last step
+    /// ([`SelfCollision`](crate::SelfCollision); 0 without it).
+    pub self_contacts: u32,
     /// Substeps the last step took: 1, or more when the guard retried it with
     /// halved time steps.
     pub substeps: u32,
@@ -552,6 +555,7 @@ impl Default for ClothStats {
             max_stretch: 0.0,
             energy: 0.0,
             contacts: 0,
+            self_contacts: 0,
             substeps: 0,
             retried_steps: 0,
             status: ClothStatus::Running,

@@ -51,6 +51,7 @@ impl Plugin for ClothCorePlugin {
             .register_type::<ClothStats>()
             .register_type::<ClothGuard>()
             .register_type::<ClothMaterial>()
+            .register_type::<crate::collision::SelfCollision>()
             .init_resource::<ClothMethods>()
             .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()

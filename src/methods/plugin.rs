@@ -14,6 +14,8 @@ use bevy::prelude::*;
 use bevy::reflect::GetTypeRegistration;
 
 use crate::character::ClothSkin;
+use crate::collision::SelfCollision;
+use crate::collision::self_contact::SelfContacts;
 use crate::collision::{Capsule, PenaltySphere, Shape};
 use crate::ecs::{
     Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothMethods, ClothParams, ClothSchedule,
@@ -59,6 +61,8 @@ pub struct ClothWorkspace<W: Default + Send + Sync + 'static> {
     /// radius, refilled each step for a method that projects them inside
     /// it ([`StepInput::contacts`]).
     contacts: Vec<Shape>,
+    /// Self-collision's pairs, for a method that leaves it to after the step.
+    self_contacts: SelfContacts,
 }
 
 /// The step systems of all methods.
@@ -187,6 +191,7 @@ type StepData<M> = (
     &'static mut ClothWorkspace<<M as Method>::Workspace>,
     &'static mut ClothStats,
     Option<&'static ClothSkin>,
+    Option<Ref<'static, SelfCollision>>,
 );
 
 /// Sets `status` to `Invalid(error)`, warning when it changes (compared by
@@ -219,6 +224,7 @@ fn step_cloths<M: ClothMethod>(
         mut ws,
         mut stats,
         skin,
+        self_collision,
     )| {
         cloth.claimed = true;
         stats.contacts = 0;
@@ -288,6 +294,20 @@ fn step_cloths<M: ClothMethod>(
                 previous: Some(&s.previous[..]),
                 ..s.constraints.input(&s.pose)
             });
+        // A self-collision that does not fit the cloth is left out, with one
+        // warning each time it is set.
+        let self_collision = self_collision.and_then(|sc| match sc.validate(model) {
+            Ok(()) => Some(*sc),
+            Err(error) => {
+                if sc.is_changed() {
+                    warn!(
+                        "cloth {entity} ('{}'): self-collision refused: {error}",
+                        method.name()
+                    );
+                }
+                None
+            }
+        });
         let method = &*method;
         let start = Instant::now();
         cloth.measured = None;
@@ -307,6 +327,7 @@ fn step_cloths<M: ClothMethod>(
                     spheres: penalty,
                     contacts,
                     skin,
+                    self_collision,
                 };
                 method.step_with(input, state, solver_ws)
             },
@@ -323,6 +344,24 @@ fn step_cloths<M: ClothMethod>(
         );
         match result {
             Ok(done) => {
+                if let Some(sc) = self_collision {
+                    stats.self_contacts = match done.report.self_contacts {
+                        Some(held) => held,
+                        None => {
+                            // After the step, for a method that does not
+                            // handle it inside.
+                            cloth.measured = None;
+                            resolve_after_step(
+                                model,
+                                &mut cloth.state,
+                                &cloth.last_good,
+                                &params,
+                                sc,
+                                &mut ws.self_contacts,
+                            )
+                        }
+                    };
+                }
                 // Penalty contacts (projection contacts are counted by the
                 // collision system, which adds to these).
                 stats.contacts += penalty
@@ -390,4 +429,58 @@ fn step_cloths<M: ClothMethod>(
             Err(GuardError::Refused(error)) => refuse(entity, method.name(), &mut stats, error),
         }
     },);
+}
+
+/// How many Gauss–Seidel passes self-collision makes after the step of a
+/// method that does not handle it inside: contacts found in one pass
+/// disturb their neighbours, and a few more settle a fold.
+const AFTER_STEP_PASSES: u32 = 4;
+
+/// Self-collision after a step from `before` to `state`: the pairs found
+/// from the step's start and its motion, pushed apart in
+/// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
+/// moved. Returns the pairs touching in the last pass.
+fn resolve_after_step(
+    model: &crate::model::ClothModel,
+    state: &mut crate::model::ClothState,
+    before: &crate::model::ClothState,
+    params: &crate::solver::StepParams,
+    sc: SelfCollision,
+    contacts: &mut SelfContacts,
+) -> u32 {
+    let n = model.vertex_count();
+    if before.positions.len() < n || state.positions.len() < n {
+        return 0;
+    }
+    let dt = params.dt as f32;
+    let inv_dt = 1.0 / dt;
+    // The step's motion as a velocity, for the swept boxes.
+    let moved: Vec<bevy::math::Vec3A> = state.positions[..n]
+        .iter()
+        .zip(&before.positions)
+        .map(|(&x, &b)| (x - b) * inv_dt)
+        .collect();
+    contacts.find(model, &before.positions[..n], &moved, dt, sc.thickness, 0.0);
+    let solved: Vec<bevy::math::Vec3A> = state.positions[..n].to_vec();
+    let mut touching = 0;
+    for _ in 0..AFTER_STEP_PASSES {
+        touching = contacts.resolve(
+            model,
+            &mut state.positions[..n],
+            |i| before.positions[i],
+            sc.friction,
+        );
+        if touching == 0 {
+            break;
+        }
+    }
+    for ((v, &x), &s) in state
+        .velocities
+        .iter_mut()
+        .zip(&state.positions)
+        .zip(&solved)
+    {
+        *v += (x - s) * inv_dt;
+    }
+    touching
 }

@@ -45,6 +45,13 @@ pub struct StepInput<'a> {
     /// substep); all are held to them after the step. `None` from
     /// [`Method::step`].
     pub skin: Option<SkinInput<'a>>,
+    /// The cloth's self-collision ([`SelfCollision`](crate::SelfCollision),
+    /// validated): a method that can keeps the cloth off itself inside its
+    /// step (the `stiff` method, in every substep) and says so in
+    /// [`StepReport::self_contacts`](super::StepReport::self_contacts); for
+    /// the others the plugin resolves it after the step. `None` from
+    /// [`Method::step`].
+    pub self_collision: Option<crate::collision::SelfCollision>,
 }
 
 /// A character cloth's skinned pose and per-vertex constraints, as a
@@ -185,6 +192,7 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
             spheres,
             contacts: &[],
             skin: None,
+            self_collision: None,
         };
         self.step_with(input, state, workspace)
     }

@@ -203,6 +203,10 @@ pub struct StepReport {
     /// the methods that leave the projection to after the step, where it is
     /// counted. Added to [`ClothStats::contacts`](crate::ClothStats::contacts).
     pub contacts: u32,
+    /// Pairs of the cloth's own vertices the method held apart at the end
+    /// of its step, if it handles self-collision inside its step (`stiff`);
+    /// `None` otherwise (the plugin then resolves it after the step).
+    pub self_contacts: Option<u32>,
 }
 
 /// The relative error above which a step counts as not converged

@@ -139,6 +139,7 @@ impl Method for SymplecticSolver {
             residual: None,
             relative_error: None,
             contacts,
+            self_contacts: None,
         })
     }
 }

@@ -168,6 +168,7 @@ impl Method for ExactSolver {
             spheres,
             contacts,
             skin: _,
+            self_collision: _,
         } = input;
         let config = self;
         let n = model.vertex_count();
@@ -403,6 +404,7 @@ impl Method for ExactSolver {
             residual: Some(report.relative_gradient as f32),
             relative_error: Some(relative_error),
             contacts: 0,
+            self_contacts: None,
         })
     }
 }

@@ -430,6 +430,7 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
                 spheres: &[],
                 contacts: &[slope],
                 skin: None,
+                self_collision: None,
             };
             let report = ExactSolver::BUDGET
                 .step_with(input, &mut state, &mut ws)
@@ -477,6 +478,7 @@ fn a_step_whose_hessian_never_factorises_is_a_typed_solve_failure_and_leaves_the
         spheres: &[sphere],
         contacts: &[],
         skin: None,
+        self_collision: None,
     };
     let result = ExactSolver::BUDGET.step_with(input, &mut state, &mut ws);
     assert_eq!(

@@ -301,6 +301,7 @@ impl Method for ImplicitSolver {
             residual: Some(residual),
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
+            self_contacts: None,
         })
     }
 }

@@ -286,6 +286,7 @@ impl Method for LinearImplicitSolver {
             residual: Some(residual as f32),
             relative_error: None,
             contacts: 0,
+            self_contacts: None,
         })
     }
 }

@@ -106,6 +106,7 @@ impl Method for PbdSolver {
             residual: None,
             relative_error: None,
             contacts: 0,
+            self_contacts: None,
         };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();

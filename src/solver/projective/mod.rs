@@ -483,6 +483,7 @@ impl Method for ProjectiveSolver {
             spheres,
             contacts,
             skin: _,
+            self_collision: _,
         } = input;
         // The penalty spheres, and the contacts as penalties.
         let mut penalties = core::mem::take(&mut ws.penalties);
@@ -663,6 +664,7 @@ impl ProjectiveSolver {
             residual: Some(residual.sqrt() as f32),
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
+            self_contacts: None,
         })
     }
 }

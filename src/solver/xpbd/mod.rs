@@ -59,6 +59,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
+use crate::collision::self_contact::SelfContacts;
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
@@ -214,6 +215,7 @@ impl Method for XpbdSolver {
             spheres,
             contacts,
             skin,
+            self_collision,
         } = input;
         let n = model.vertex_count();
         let base = self.substeps(params.dt);
@@ -412,6 +414,13 @@ impl Method for XpbdSolver {
             }
             touching
         };
+        // Self-collision's pairs, once per step from where the cloth is and
+        // where its velocities take it (before the first prediction).
+        if let Some(sc) = self_collision {
+            let slack = gravity.length() * (params.dt * params.dt) as f32;
+            ws.self_contacts
+                .find(model, x, v, params.dt as f32, sc.thickness, slack);
+        }
         pass(x, v, prev, (&[], &[]), false, true);
         let springs = ColouredSprings::new(
             &ws.links.ends,
@@ -420,7 +429,7 @@ impl Method for XpbdSolver {
             &ws.colouring.colours,
             n,
         );
-        let mut contacts_held = 0;
+        let (mut contacts_held, mut self_held) = (0, 0);
         for substep in 1..=substeps {
             if moving {
                 // Where the pins are at this substep's end.
@@ -444,6 +453,11 @@ impl Method for XpbdSolver {
                 }
             }
             sweep(params.simd, springs, x);
+            if let Some(sc) = self_collision {
+                self_held = ws
+                    .self_contacts
+                    .resolve(model, x, |i| prev[i][0], sc.friction);
+            }
             contacts_held = pass(
                 x,
                 v,
@@ -458,6 +472,7 @@ impl Method for XpbdSolver {
             residual: None,
             relative_error: None,
             contacts: contacts_held,
+            self_contacts: self_collision.map(|_| self_held),
         })
     }
 }
@@ -596,6 +611,8 @@ pub struct XpbdWorkspace {
     pin_paths: Vec<(Vec3A, Vec3A)>,
     /// A character cloth's skinned positions at the current substep.
     skin_now: Vec<Vec3A>,
+    /// Self-collision's pairs for the step.
+    self_contacts: SelfContacts,
 }
 
 impl XpbdWorkspace {

@@ -1,0 +1,440 @@
+//! A cloth against itself (issue N, first part): every pair of vertices is
+//! kept at least a *thickness* apart, as in Müller's "ten minute physics"
+//! self-collision, with friction.
+//!
+//! # Why vertices, and how thick
+//!
+//! The thickness is validated to be below the cloth's shortest rest edge
+//! (else every vertex would touch its neighbours at rest). Above about
+//! 0.71 of the edges (the circumradius of the grid's right triangles), a
+//! vertex kept that far from every other vertex cannot reach any point of
+//! a triangle of the cloth's own resolution, and two edges cannot cross
+//! without their ends coming that close: vertex–vertex separation then
+//! keeps the surface from passing through itself, while the narrow phase
+//! stays one distance per pair. [`SelfCollision::for_model`] picks 0.9 of
+//! the shortest edge. A thinner setting is allowed and keeps layers closer,
+//! at the price of that guarantee.
+//!
+//! # The loop
+//!
+//! - [`SelfContacts::find`] once per step: the pairs that can come within
+//!   the thickness during the step, from each vertex's swept box (its
+//!   position and where its velocity takes it) sorted into a grid of cells
+//!   of the thickness's size. A pair's minimum distance is the thickness,
+//!   or its rest distance where that is shorter (a mesh folded at rest).
+//! - [`SelfContacts::resolve`] in every substep of the `stiff` method (a
+//!   vertex moves less than the thickness in one) and after the step of
+//!   every other method: Gauss–Seidel over the pairs in a fixed order,
+//!   each pushed apart by inverse mass along the line between them, then
+//!   position-based Coulomb friction on their relative motion since the
+//!   substep began. Pinned vertices do not move. The order is the sorted
+//!   pair list: the same result on any thread count.
+//!
+//! [`count_intersections`] is the exact check: how many mesh edges pass
+//! through a triangle that shares no vertex with them.
+
+use bevy::math::Vec3A;
+use bevy::prelude::*;
+
+use crate::model::ClothModel;
+
+/// A cloth that collides with itself: add it to a cloth entity (any
+/// method). A cloth without it pays nothing.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Debug, PartialEq)]
+pub struct SelfCollision {
+    /// How far apart any two vertices are kept (m): below the cloth's
+    /// shortest rest edge, and above about 0.71 of it for the surface to
+    /// be kept from passing through itself (see the [module docs](self)).
+    pub thickness: f32,
+    /// Coulomb friction between touching parts of the cloth (0: none).
+    pub friction: f32,
+}
+
+impl SelfCollision {
+    /// 0.9 of `model`'s shortest rest edge, with friction 0.3.
+    pub fn for_model(model: &ClothModel) -> Self {
+        Self {
+            thickness: 0.9 * shortest_edge(model),
+            friction: 0.3,
+        }
+    }
+
+    /// Checks the setting for `model` (see [`SelfCollisionError`]).
+    pub fn validate(&self, model: &ClothModel) -> Result<(), SelfCollisionError> {
+        if !(self.thickness.is_finite() && self.thickness > 0.0) {
+            return Err(SelfCollisionError::Thickness(self.thickness));
+        }
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return Err(SelfCollisionError::Friction(self.friction));
+        }
+        let shortest = shortest_edge(model);
+        if shortest.is_finite() && self.thickness >= shortest {
+            return Err(SelfCollisionError::ThickerThanEdges {
+                thickness: self.thickness,
+                shortest,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The shortest triangle edge of `model` at rest (`∞` without triangles).
+fn shortest_edge(model: &ClothModel) -> f32 {
+    let rest = model.topology().rest_positions();
+    model
+        .topology()
+        .triangles()
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .map(|(a, b)| rest[a as usize].distance(rest[b as usize]))
+        .filter(|&l| l > 0.0)
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// Why a [`SelfCollision`] is refused.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error, Reflect)]
+pub enum SelfCollisionError {
+    /// The thickness is zero, negative or not finite.
+    #[error("self-collision thickness {0} must be positive and finite")]
+    Thickness(f32),
+    /// The thickness is at least the cloth's shortest rest edge: every
+    /// vertex would touch its neighbours at rest.
+    #[error(
+        "self-collision thickness {thickness} must be below the cloth's shortest rest edge \
+         ({shortest})"
+    )]
+    ThickerThanEdges {
+        /// The thickness given.
+        thickness: f32,
+        /// The shortest triangle edge at rest.
+        shortest: f32,
+    },
+    /// The friction is negative or not finite.
+    #[error("self-collision friction {0} must be non-negative and finite")]
+    Friction(f32),
+}
+
+/// One pair of vertices kept apart: `a < b`, and the least distance
+/// between them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pair {
+    a: u32,
+    b: u32,
+    min: f32,
+}
+
+/// The most grid cells one vertex's swept box may cover: a vertex moving
+/// further in one step (a diverging cloth, which the guard will stop) is
+/// left out of the step's pairs rather than filling memory.
+const MAX_CELLS: i64 = 512;
+
+/// Self-collision's scratch and the step's pairs ([`find`](Self::find),
+/// [`resolve`](Self::resolve)), reused from step to step.
+#[derive(Clone, Debug, Default)]
+pub struct SelfContacts {
+    /// `(cell, vertex)`, sorted.
+    cells: Vec<(u64, u32)>,
+    /// The step's pairs, sorted by `(a, b)`.
+    pairs: Vec<Pair>,
+    /// Vertices left out of the step's pairs (their swept box was too large).
+    skipped: usize,
+}
+
+/// A cell's key: its integer coordinates packed 21 bits each.
+fn key(c: [i64; 3]) -> u64 {
+    let m = (1u64 << 21) - 1;
+    ((c[0] as u64) & m) | (((c[1] as u64) & m) << 21) | (((c[2] as u64) & m) << 42)
+}
+
+fn cell_of(p: Vec3A, inv: f32) -> [i64; 3] {
+    let q = p * inv;
+    [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
+}
+
+/// The least distance between two points moving in straight lines over
+/// `t ∈ [0, 1]`: `d` apart at the start, their difference moving by `dd`.
+fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
+    let l2 = dd.length_squared();
+    let t = if l2 > 0.0 {
+        (-d.dot(dd) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (d + t * dd).length()
+}
+
+impl SelfContacts {
+    /// The pairs of the step: vertices of `model` at `x` moving at `v` for
+    /// `dt` seconds that can come within `thickness` of each other, with
+    /// `slack` (m) added to every swept box for what the step's forces add
+    /// to the straight motion (the plugin passes the fall `|g|·dt²` and a
+    /// quarter of each vertex's own motion on top).
+    pub fn find(
+        &mut self,
+        model: &ClothModel,
+        x: &[Vec3A],
+        v: &[Vec3A],
+        dt: f32,
+        thickness: f32,
+        slack: f32,
+    ) {
+        self.cells.clear();
+        self.pairs.clear();
+        self.skipped = 0;
+        let n = model.vertex_count().min(x.len()).min(v.len());
+        if n < 2 || thickness.is_nan() || thickness <= 0.0 {
+            return;
+        }
+        let inv = 1.0 / thickness;
+        let pinned = model.pinned();
+        let margin = |i: usize| 0.5 * thickness + slack + 0.25 * v[i].length() * dt;
+        for i in 0..n {
+            let end = x[i] + v[i] * dt;
+            let m = margin(i);
+            let (lo, hi) = (
+                cell_of(x[i].min(end) - m, inv),
+                cell_of(x[i].max(end) + m, inv),
+            );
+            let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+            if !(1..=MAX_CELLS).contains(&span) {
+                self.skipped += 1;
+                continue;
+            }
+            for cx in lo[0]..=hi[0] {
+                for cy in lo[1]..=hi[1] {
+                    for cz in lo[2]..=hi[2] {
+                        self.cells.push((key([cx, cy, cz]), i as u32));
+                    }
+                }
+            }
+        }
+        self.cells.sort_unstable();
+        let rest = model.topology().rest_positions();
+        let mut start = 0;
+        while start < self.cells.len() {
+            let cell = self.cells[start].0;
+            let mut end = start + 1;
+            while end < self.cells.len() && self.cells[end].0 == cell {
+                end += 1;
+            }
+            for (k, &(_, a)) in self.cells[start..end].iter().enumerate() {
+                for &(_, b) in &self.cells[start + k + 1..end] {
+                    let (a, b) = (a as usize, b as usize);
+                    if pinned[a] && pinned[b] {
+                        continue;
+                    }
+                    let min = thickness.min(rest[a].distance(rest[b]));
+                    if min.is_nan() || min <= 0.0 {
+                        continue;
+                    }
+                    let reach = min + margin(a) + margin(b) - thickness;
+                    let d = x[b] - x[a];
+                    if closest_approach(d, (v[b] - v[a]) * dt) <= reach {
+                        self.pairs.push(Pair {
+                            a: a as u32,
+                            b: b as u32,
+                            min,
+                        });
+                    }
+                }
+            }
+            start = end;
+        }
+        self.pairs
+            .sort_unstable_by_key(|p| (u64::from(p.a) << 32) | u64::from(p.b));
+        self.pairs.dedup_by_key(|p| (p.a, p.b));
+    }
+
+    /// Pairs found for the step.
+    pub fn pair_count(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// Vertices left out of the step's pairs because their swept box was
+    /// too large to grid (a cloth moving its own size in one step).
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// One Gauss–Seidel pass over the step's pairs: each pair closer than
+    /// its least distance is pushed apart by inverse mass, with Coulomb
+    /// `friction` on the pair's relative motion since `start` (the
+    /// substep's start). Returns the pairs that were touching.
+    pub fn resolve(
+        &self,
+        model: &ClothModel,
+        x: &mut [Vec3A],
+        start: impl Fn(usize) -> Vec3A,
+        friction: f32,
+    ) -> u32 {
+        let pinned = model.pinned();
+        let masses = model.masses();
+        let weight = |i: usize| {
+            if pinned[i] { 0.0 } else { 1.0 / masses[i] }
+        };
+        let mut touching = 0;
+        for p in &self.pairs {
+            let (a, b) = (p.a as usize, p.b as usize);
+            let (Some(&xa), Some(&xb)) = (x.get(a), x.get(b)) else {
+                continue;
+            };
+            let d = xb - xa;
+            let d2 = d.length_squared();
+            if d2 >= p.min * p.min {
+                continue;
+            }
+            let (wa, wb) = (weight(a), weight(b));
+            let w = wa + wb;
+            if w <= 0.0 {
+                continue;
+            }
+            let dist = d2.sqrt();
+            // Two vertices on the same point: apart along where they came from.
+            let normal = if dist > 1e-6 * p.min {
+                d / dist
+            } else {
+                let back = start(b) - start(a);
+                match back.try_normalize() {
+                    Some(n) => n,
+                    None => continue,
+                }
+            };
+            touching += 1;
+            let depth = p.min - dist;
+            let (sa, sb) = (wa / w, wb / w);
+            let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
+            if friction > 0.0 {
+                let moved = (xb - start(b)) - (xa - start(a));
+                let tangential = moved - moved.dot(normal) * normal;
+                let length = tangential.length();
+                if length > 0.0 {
+                    let cut = tangential * ((friction * depth).min(length) / length);
+                    xa += cut * sa;
+                    xb -= cut * sb;
+                }
+            }
+            x[a] = xa;
+            x[b] = xb;
+        }
+        touching
+    }
+}
+
+/// Scratch of [`count_intersections`]: the triangles' cells.
+#[derive(Clone, Debug, Default)]
+pub struct IntersectionCheck {
+    cells: Vec<(u64, u32)>,
+    candidates: Vec<u32>,
+    edges: Vec<(u32, u32)>,
+}
+
+/// Whether the segment `p`–`q` passes through the triangle `a, b, c`: its
+/// ends strictly on opposite sides of the triangle's plane (by more than a
+/// millionth of the segment's length: a segment lying in the plane, as in
+/// a flat sheet, touches rather than passes) and the crossing point inside
+/// the triangle or on its border.
+fn segment_hits_triangle(p: Vec3A, q: Vec3A, [a, b, c]: [Vec3A; 3]) -> bool {
+    let Some(n) = (b - a).cross(c - a).try_normalize() else {
+        return false;
+    };
+    let (dp, dq) = ((p - a).dot(n), (q - a).dot(n));
+    let eps = 1e-6 * p.distance(q);
+    if !((dp > eps && dq < -eps) || (dp < -eps && dq > eps)) {
+        return false;
+    }
+    let x = p + (q - p) * (dp / (dp - dq));
+    let side = |u: Vec3A, w: Vec3A| (w - u).cross(x - u).dot(n) >= 0.0;
+    side(a, b) && side(b, c) && side(c, a)
+}
+
+/// The exact check: how many of `model`'s mesh edges at `x` pass through
+/// one of its triangles that shares no vertex with the edge (each edge
+/// counted once per triangle it passes through). 0 for a surface that does
+/// not pass through itself.
+pub fn count_intersections(
+    model: &ClothModel,
+    x: &[Vec3A],
+    check: &mut IntersectionCheck,
+) -> usize {
+    let triangles = model.topology().triangles();
+    if triangles.is_empty() || x.len() < model.vertex_count() {
+        return 0;
+    }
+    let corners = |t: &[u32; 3]| t.map(|v| x[v as usize]);
+    // Cells of the mean edge's size.
+    let mut length = 0.0f32;
+    for t in triangles {
+        let [a, b, c] = corners(t);
+        length += a.distance(b) + b.distance(c) + c.distance(a);
+    }
+    let size = length / (3 * triangles.len()) as f32;
+    if !(size > 0.0 && size.is_finite()) {
+        return 0;
+    }
+    let inv = 1.0 / size;
+    check.cells.clear();
+    for (i, t) in triangles.iter().enumerate() {
+        let [a, b, c] = corners(t);
+        let (lo, hi) = (cell_of(a.min(b).min(c), inv), cell_of(a.max(b).max(c), inv));
+        let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+        if !(1..=MAX_CELLS).contains(&span) {
+            continue;
+        }
+        for cx in lo[0]..=hi[0] {
+            for cy in lo[1]..=hi[1] {
+                for cz in lo[2]..=hi[2] {
+                    check.cells.push((key([cx, cy, cz]), i as u32));
+                }
+            }
+        }
+    }
+    check.cells.sort_unstable();
+    // Each edge once.
+    check.edges.clear();
+    for t in triangles {
+        for (u, w) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            check.edges.push((u.min(w), u.max(w)));
+        }
+    }
+    check.edges.sort_unstable();
+    check.edges.dedup();
+    let mut count = 0;
+    for &(u, w) in &check.edges {
+        {
+            let (p, q) = (x[u as usize], x[w as usize]);
+            let (lo, hi) = (cell_of(p.min(q), inv), cell_of(p.max(q), inv));
+            let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+            if !(1..=MAX_CELLS).contains(&span) {
+                continue;
+            }
+            check.candidates.clear();
+            for cx in lo[0]..=hi[0] {
+                for cy in lo[1]..=hi[1] {
+                    for cz in lo[2]..=hi[2] {
+                        let k = key([cx, cy, cz]);
+                        let from = check.cells.partition_point(|&(c, _)| c < k);
+                        check.candidates.extend(
+                            check.cells[from..]
+                                .iter()
+                                .take_while(|&&(c, _)| c == k)
+                                .map(|&(_, t)| t),
+                        );
+                    }
+                }
+            }
+            check.candidates.sort_unstable();
+            check.candidates.dedup();
+            for &other in &check.candidates {
+                let tri = triangles[other as usize];
+                if tri.contains(&u) || tri.contains(&w) {
+                    continue;
+                }
+                if segment_hits_triangle(p, q, corners(&tri)) {
+                    count += 1;
+                }
+            }
+        }
+    }
+    count
+}
