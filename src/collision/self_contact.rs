@@ -36,7 +36,7 @@
 use bevy::math::Vec3A;
 use bevy::prelude::*;
 
-use crate::model::ClothModel;
+use crate::model::{ClothModel, ClothState};
 
 /// A cloth that collides with itself: add it to a cloth entity (any
 /// method). A cloth without it pays nothing.
@@ -316,6 +316,62 @@ impl SelfContacts {
             }
             x[a] = xa;
             x[b] = xb;
+        }
+        touching
+    }
+}
+
+/// How many Gauss–Seidel passes self-collision makes after the step of a
+/// method that does not handle it inside: contacts found in one pass
+/// disturb their neighbours, and a few more settle a fold.
+pub const AFTER_STEP_PASSES: u32 = 4;
+
+impl SelfContacts {
+    /// Self-collision after a step from `before` to `state`: the pairs found
+    /// from the step's start and its motion, pushed apart in
+    /// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
+    /// moved. Returns the pairs touching in the last pass.
+    pub fn resolve_after_step(
+        &mut self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        before: &ClothState,
+        params: &crate::solver::StepParams,
+        sc: SelfCollision,
+    ) -> u32 {
+        let n = model.vertex_count();
+        if before.positions.len() < n || state.positions.len() < n {
+            return 0;
+        }
+        let dt = params.dt as f32;
+        let inv_dt = 1.0 / dt;
+        // The step's motion as a velocity, for the swept boxes.
+        let moved: Vec<Vec3A> = state.positions[..n]
+            .iter()
+            .zip(&before.positions)
+            .map(|(&x, &b)| (x - b) * inv_dt)
+            .collect();
+        self.find(model, &before.positions[..n], &moved, dt, sc.thickness, 0.0);
+        let solved: Vec<Vec3A> = state.positions[..n].to_vec();
+        let mut touching = 0;
+        for _ in 0..AFTER_STEP_PASSES {
+            touching = self.resolve(
+                model,
+                &mut state.positions[..n],
+                |i| before.positions[i],
+                sc.friction,
+            );
+            if touching == 0 {
+                break;
+            }
+        }
+        for ((v, &x), &s) in state
+            .velocities
+            .iter_mut()
+            .zip(&state.positions)
+            .zip(&solved)
+        {
+            *v += (x - s) * inv_dt;
         }
         touching
     }

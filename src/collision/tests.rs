@@ -244,3 +244,170 @@ fn penalty_shapes_match_their_projection_contacts_in_f32_and_f64() {
     assert!(grown.contact(Vec3A::new(0.0, -0.8, 0.0)).is_some());
     assert!(plane.contact(Vec3A::new(0.0, -0.8, 0.0)).is_none());
 }
+
+mod self_collision {
+    use bevy::math::{Affine3A, Vec3, Vec3A};
+
+    use crate::collision::self_contact::{IntersectionCheck, SelfContacts, count_intersections};
+    use crate::collision::{SelfCollision, SelfCollisionError};
+    use crate::model::{ClothBuilder, ClothModel, ClothState};
+    use crate::solver::StepParams;
+    use crate::solver::implicit::ImplicitSolver;
+    use crate::solver::{Method, max_stretch};
+
+    /// A flat 1 m sheet of `n²` vertices in the xz-plane, 1 kg a vertex.
+    fn sheet(n: usize) -> ClothModel {
+        ClothBuilder::grid(n, n, Vec3::ZERO, Vec3::Z, Vec3::X)
+            .build()
+            .unwrap()
+    }
+
+    #[test]
+    fn bad_settings_are_refused_with_their_reason() {
+        let model = sheet(11);
+        let good = SelfCollision::for_model(&model);
+        assert_eq!(good.validate(&model), Ok(()));
+        assert!((good.thickness - 0.09).abs() < 1e-4, "{}", good.thickness);
+        for t in [0.0, -0.01, f32::NAN, f32::INFINITY] {
+            let sc = SelfCollision {
+                thickness: t,
+                ..good
+            };
+            assert!(matches!(
+                sc.validate(&model),
+                Err(SelfCollisionError::Thickness(_))
+            ));
+        }
+        let thick = SelfCollision {
+            thickness: 0.1,
+            ..good
+        };
+        assert!(matches!(
+            thick.validate(&model),
+            Err(SelfCollisionError::ThickerThanEdges { .. })
+        ));
+        for f in [-0.1, f32::NAN] {
+            let sc = SelfCollision {
+                friction: f,
+                ..good
+            };
+            assert!(matches!(
+                sc.validate(&model),
+                Err(SelfCollisionError::Friction(_))
+            ));
+            assert!(
+                sc.validate(&model)
+                    .unwrap_err()
+                    .to_string()
+                    .contains("friction")
+            );
+        }
+    }
+
+    #[test]
+    fn the_exact_check_counts_an_edge_through_the_sheet_and_nothing_at_rest() {
+        let model = sheet(7);
+        let mut check = IntersectionCheck::default();
+        let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        assert_eq!(count_intersections(&model, &x, &mut check), 0);
+        // Two neighbours of one corner, put above and below the middle of a
+        // triangle far from them: the edge between them passes through it.
+        let (a, b) = (0, 1);
+        let middle = (x[24] + x[25] + x[31]) / 3.0;
+        x[a] = middle + Vec3A::Y * 0.3;
+        x[b] = middle - Vec3A::Y * 0.3;
+        assert!(count_intersections(&model, &x, &mut check) >= 1);
+        // Lying in the sheet's plane is touching, not passing.
+        x[a] = middle + Vec3A::X * 0.01;
+        x[b] = middle - Vec3A::X * 0.01;
+        assert_eq!(count_intersections(&model, &x, &mut check), 0);
+    }
+
+    #[test]
+    fn two_vertices_too_close_are_pushed_to_the_thickness_and_pins_stay() {
+        let model = sheet(11);
+        let sc = SelfCollision::for_model(&model);
+        let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        // Vertex 60 folded onto vertex 0's place, a millimetre above it.
+        let (a, b) = (0usize, 60usize);
+        x[b] = x[a] + Vec3A::Y * 0.001;
+        let v = vec![Vec3A::ZERO; x.len()];
+        let mut contacts = SelfContacts::default();
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
+        assert!(contacts.pair_count() > 0);
+        let start = x.clone();
+        let touching = contacts.resolve(&model, &mut x, |i| start[i], 0.0);
+        assert_eq!(touching, 1);
+        assert!((x[a].distance(x[b]) - sc.thickness).abs() < 1e-5);
+        // Equal masses share the push along y.
+        assert!((x[a].y + x[b].y - start[a].y - start[b].y).abs() < 1e-6);
+        // With vertex 0 pinned, only the other moves.
+        let mut model = model;
+        model.set_pins(vec![0]).unwrap();
+        let mut x = start.clone();
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
+        contacts.resolve(&model, &mut x, |i| start[i], 0.0);
+        assert_eq!(x[a], start[a]);
+        assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
+    }
+
+    /// The crumpling sheet of the `stiff` test, under Chebyshev with the
+    /// self-collision after the step: far fewer edges through the cloth.
+    #[test]
+    fn after_the_step_it_helps_every_method() {
+        let n = 16;
+        let model = ClothBuilder::grid(
+            n,
+            n,
+            Vec3::new(0.0, 0.02, 0.0),
+            Vec3::new(0.0, 1.0, 0.15),
+            Vec3::new(1.0, 0.02, 0.0),
+        )
+        .with_total_mass(2.56)
+        .build()
+        .unwrap();
+        let params = StepParams {
+            dt: 1.0 / 60.0,
+            stiffness: crate::solver::SpringStiffness::uniform(400.0),
+            ..StepParams::LAB
+        };
+        let ground = crate::collision::Shape::Plane(crate::collision::Plane {
+            point: Vec3A::ZERO,
+            normal: Vec3A::Y,
+            friction: 0.5,
+        });
+        let method = ImplicitSolver::chebyshev(32, 0.9);
+        let run = |sc: Option<SelfCollision>| {
+            let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+            let (mut ws, mut contacts, mut check) = Default::default();
+            let mut before = state.clone();
+            let (mut worst, mut stretch) = (0, 0.0f32);
+            for _ in 0..180 {
+                before.copy_from(&state);
+                method
+                    .step(&model, &mut state, &params, &[], &mut ws)
+                    .unwrap();
+                crate::collision::project_shapes(&model, &mut state, &[ground], 0.0, 1.0 / 60.0);
+                if let Some(sc) = sc {
+                    SelfContacts::resolve_after_step(
+                        &mut contacts,
+                        &model,
+                        &mut state,
+                        &before,
+                        &params,
+                        sc,
+                    );
+                }
+                worst = worst.max(count_intersections(&model, &state.positions, &mut check));
+                stretch = stretch.max(max_stretch(&model, &state.positions));
+            }
+            assert!(state.positions.iter().all(|p| p.is_finite()));
+            (worst, stretch)
+        };
+        let (without, _) = run(None);
+        let (with, stretch) = run(Some(SelfCollision::for_model(&model)));
+        println!("chebyshev: {without} without, {with} with, stretch {stretch}");
+        assert!(without > 0);
+        assert!(with * 4 < without, "{with} with against {without} without");
+    }
+}

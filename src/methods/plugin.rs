@@ -351,13 +351,12 @@ fn step_cloths<M: ClothMethod>(
                             // After the step, for a method that does not
                             // handle it inside.
                             cloth.measured = None;
-                            resolve_after_step(
+                            ws.self_contacts.resolve_after_step(
                                 model,
                                 &mut cloth.state,
                                 &cloth.last_good,
                                 &params,
                                 sc,
-                                &mut ws.self_contacts,
                             )
                         }
                     };
@@ -429,58 +428,4 @@ fn step_cloths<M: ClothMethod>(
             Err(GuardError::Refused(error)) => refuse(entity, method.name(), &mut stats, error),
         }
     },);
-}
-
-/// How many Gauss–Seidel passes self-collision makes after the step of a
-/// method that does not handle it inside: contacts found in one pass
-/// disturb their neighbours, and a few more settle a fold.
-const AFTER_STEP_PASSES: u32 = 4;
-
-/// Self-collision after a step from `before` to `state`: the pairs found
-/// from the step's start and its motion, pushed apart in
-/// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
-/// moved. Returns the pairs touching in the last pass.
-fn resolve_after_step(
-    model: &crate::model::ClothModel,
-    state: &mut crate::model::ClothState,
-    before: &crate::model::ClothState,
-    params: &crate::solver::StepParams,
-    sc: SelfCollision,
-    contacts: &mut SelfContacts,
-) -> u32 {
-    let n = model.vertex_count();
-    if before.positions.len() < n || state.positions.len() < n {
-        return 0;
-    }
-    let dt = params.dt as f32;
-    let inv_dt = 1.0 / dt;
-    // The step's motion as a velocity, for the swept boxes.
-    let moved: Vec<bevy::math::Vec3A> = state.positions[..n]
-        .iter()
-        .zip(&before.positions)
-        .map(|(&x, &b)| (x - b) * inv_dt)
-        .collect();
-    contacts.find(model, &before.positions[..n], &moved, dt, sc.thickness, 0.0);
-    let solved: Vec<bevy::math::Vec3A> = state.positions[..n].to_vec();
-    let mut touching = 0;
-    for _ in 0..AFTER_STEP_PASSES {
-        touching = contacts.resolve(
-            model,
-            &mut state.positions[..n],
-            |i| before.positions[i],
-            sc.friction,
-        );
-        if touching == 0 {
-            break;
-        }
-    }
-    for ((v, &x), &s) in state
-        .velocities
-        .iter_mut()
-        .zip(&state.positions)
-        .zip(&solved)
-    {
-        *v += (x - s) * inv_dt;
-    }
-    touching
 }
