@@ -23,4 +23,5 @@ mod mistakes;
 mod plugin;
 mod save;
 mod scenes;
+mod self_collision;
 mod wind;

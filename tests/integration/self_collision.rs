@@ -1,0 +1,98 @@
+//! Self-collision in an app: a sheet crumpling on the ground does not pass
+//! through itself with `stiff`, passes through itself far less with a
+//! method that leaves it to after the step, and a bad setting is refused
+//! with the cloth still running.
+
+use bevy::prelude::*;
+use bevy_cloth::collision::self_contact::{IntersectionCheck, count_intersections};
+use bevy_cloth::prelude::*;
+
+use crate::common::{app, run_steps, stats};
+
+/// A 1 m sheet of 20² cotton standing on its edge, a little tilted, above
+/// the ground, with `method`; `self_collision` picks the component.
+fn crumple(method: AnyMethod, self_collision: bool) -> (usize, u32, ClothStats) {
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+    app.world_mut()
+        .spawn((PlaneCollider::new(0.5), Transform::default()));
+    let model = ClothBuilder::grid(
+        20,
+        20,
+        Vec3::new(0.0, 0.02, 0.0),
+        Vec3::new(0.0, 1.0, 0.15),
+        Vec3::new(1.0, 0.02, 0.0),
+    )
+    .build()
+    .unwrap();
+    let sc = SelfCollision::for_model(&model);
+    let mut entity = app.world_mut().spawn((
+        Cloth::new(model),
+        ClothMaterial::COTTON,
+        Transform::default(),
+    ));
+    if self_collision {
+        entity.insert(sc);
+    }
+    let cloth = entity.id();
+    method.insert(&mut app.world_mut().commands().entity(cloth));
+    let mut check = IntersectionCheck::default();
+    let (mut worst, mut most_pairs) = (0, 0);
+    for _ in 0..120 {
+        run_steps(&mut app, 1);
+        let c = app.world().get::<Cloth>(cloth).unwrap();
+        worst = worst.max(count_intersections(
+            c.model(),
+            &c.state().positions,
+            &mut check,
+        ));
+        most_pairs = most_pairs.max(stats(&app, cloth).self_contacts);
+    }
+    (worst, most_pairs, stats(&app, cloth))
+}
+
+#[test]
+fn stiff_keeps_a_crumpling_sheet_off_itself_in_an_app() {
+    let stiff = AnyMethod::default();
+    let (without, pairs, _) = crumple(stiff, false);
+    assert!(without > 0, "the scene must fold through itself without it");
+    assert_eq!(pairs, 0, "no self-contacts without the component");
+    let (with, pairs, s) = crumple(stiff, true);
+    assert_eq!(
+        with, 0,
+        "{without} edges through the sheet without self-collision"
+    );
+    assert!(pairs > 0, "the folds touch");
+    assert!(s.is_running(), "{s:?}");
+}
+
+#[test]
+fn a_method_without_it_inside_gets_it_after_the_step() {
+    let pd = PRESETS.iter().find(|p| p.name() == "pd").unwrap().method;
+    let (without, _, _) = crumple(pd, false);
+    let (with, pairs, s) = crumple(pd, true);
+    println!("pd: {without} edges through the sheet without, {with} with");
+    assert!(pairs > 0 && s.is_running(), "{s:?}");
+    assert!(with * 2 < without, "{with} with against {without} without");
+}
+
+#[test]
+fn a_bad_setting_is_refused_and_the_cloth_keeps_running() {
+    let mut app = app();
+    let cloth = Cloth::build(ClothBuilder::lab_grid(11)).unwrap();
+    let bad = SelfCollision {
+        thickness: f32::NAN,
+        friction: 0.2,
+    };
+    assert!(bad.validate(cloth.model()).is_err());
+    let entity = app
+        .world_mut()
+        .spawn((cloth, ImplicitSolver::chebyshev(32, 0.995), bad))
+        .id();
+    run_steps(&mut app, 10);
+    let s = stats(&app, entity);
+    assert!(s.is_running() && s.steps >= 9, "{s:?}");
+    assert_eq!(s.self_contacts, 0);
+    let c = app.world().get::<Cloth>(entity).unwrap();
+    assert!(c.state().positions.iter().all(|p| p.is_finite()));
+}
