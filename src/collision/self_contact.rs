@@ -152,6 +152,14 @@ fn cell_of(p: Vec3A, inv: f32) -> [i64; 3] {
     [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
 }
 
+/// How many cells the box of cells `lo..=hi` covers (saturating: a box
+/// out at infinity covers `i64::MAX`).
+fn span(lo: [i64; 3], hi: [i64; 3]) -> i64 {
+    (0..3)
+        .map(|k| hi[k].saturating_sub(lo[k]).saturating_add(1).max(0))
+        .fold(1i64, i64::saturating_mul)
+}
+
 /// The least distance between two points moving in straight lines over
 /// `t ∈ [0, 1]`: `d` apart at the start, their difference moving by `dd`.
 fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
@@ -192,11 +200,15 @@ impl SelfContacts {
         for i in 0..n {
             let end = x[i] + v[i] * dt;
             let m = margin(i);
+            if !(x[i].is_finite() && end.is_finite() && m.is_finite()) {
+                self.skipped += 1;
+                continue;
+            }
             let (lo, hi) = (
                 cell_of(x[i].min(end) - m, inv),
                 cell_of(x[i].max(end) + m, inv),
             );
-            let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+            let span = span(lo, hi);
             if !(1..=MAX_CELLS).contains(&span) {
                 self.skipped += 1;
                 continue;
@@ -252,7 +264,8 @@ impl SelfContacts {
     }
 
     /// Vertices left out of the step's pairs because their swept box was
-    /// too large to grid (a cloth moving its own size in one step).
+    /// too large to grid (a cloth moving its own size in one step) or not
+    /// finite.
     pub fn skipped(&self) -> usize {
         self.skipped
     }
@@ -433,7 +446,7 @@ pub fn count_intersections(
     for (i, t) in triangles.iter().enumerate() {
         let [a, b, c] = corners(t);
         let (lo, hi) = (cell_of(a.min(b).min(c), inv), cell_of(a.max(b).max(c), inv));
-        let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+        let span = span(lo, hi);
         if !(1..=MAX_CELLS).contains(&span) {
             continue;
         }
@@ -460,7 +473,7 @@ pub fn count_intersections(
         {
             let (p, q) = (x[u as usize], x[w as usize]);
             let (lo, hi) = (cell_of(p.min(q), inv), cell_of(p.max(q), inv));
-            let span: i64 = (0..3).map(|k| (hi[k] - lo[k] + 1).max(0)).product();
+            let span = span(lo, hi);
             if !(1..=MAX_CELLS).contains(&span) {
                 continue;
             }

@@ -351,6 +351,22 @@ mod self_collision {
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
     }
 
+    #[test]
+    fn a_vertex_flying_off_to_infinity_is_left_out_without_a_panic() {
+        let model = sheet(5);
+        let sc = SelfCollision::for_model(&model);
+        let x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        let mut v = vec![Vec3A::ZERO; x.len()];
+        v[3] = Vec3A::new(f32::INFINITY, 0.0, f32::NAN);
+        let mut contacts = SelfContacts::default();
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
+        assert_eq!(contacts.skipped(), 1);
+        let mut check = IntersectionCheck::default();
+        let mut y = x.clone();
+        y[3] = Vec3A::splat(f32::INFINITY);
+        count_intersections(&model, &y, &mut check);
+    }
+
     /// The crumpling sheet of the `stiff` test, under Chebyshev with the
     /// self-collision after the step: far fewer edges through the cloth.
     #[test]

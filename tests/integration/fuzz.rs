@@ -83,7 +83,7 @@ fn act(app: &mut App, rng: &mut Rng) -> usize {
         .iter(world)
         .collect();
     let cloth = (!cloths.is_empty()).then(|| rng.pick(&cloths));
-    let action = rng.below(16);
+    let action = rng.below(17);
     match action {
         0 | 1 => {
             // A new cloth: a grid of 2..8 per side, random pins, perhaps a
@@ -267,6 +267,21 @@ fn act(app: &mut App, rng: &mut Rng) -> usize {
                 world
                     .entity_mut(e)
                     .insert(ClothSkin::new(constraints, pose));
+            }
+        }
+        15 => {
+            // Self-collision: the cloth's own setting, or any thickness and
+            // friction.
+            if let Some(e) = cloth {
+                let sc = if rng.chance(2) {
+                    SelfCollision::for_model(world.get::<Cloth>(e).unwrap().model())
+                } else {
+                    SelfCollision {
+                        thickness: rng.pick(&NUMBERS),
+                        friction: rng.pick(&NUMBERS),
+                    }
+                };
+                world.entity_mut(e).insert(sc);
             }
         }
         _ => {
