@@ -125,6 +125,16 @@
 //!   their objective as penalties, so stiff cloth in contact is not strained
 //!   by the projection after the step; the lab's and the assignment's
 //!   methods leave them to that projection, as their specifications do.
+//! - [`SelfCollision`] (on a cloth entity, opt-in; a cloth without it pays
+//!   nothing): every pair of the cloth's vertices is kept a thickness apart
+//!   ([`collision::self_contact`]; [`SelfCollision::for_model`] takes 0.9
+//!   of the shortest rest edge, where the surface cannot pass through
+//!   itself). `stiff` keeps them apart in every substep; every other method
+//!   gets it after its step, which helps but does not guarantee it (a
+//!   vertex can move further than the thickness in one step). A bad setting
+//!   is a [`SelfCollisionError`], logged once, and the cloth runs without
+//!   it. Cloth against another cloth, and edges against colliders, are not
+//!   built yet.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
