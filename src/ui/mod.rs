@@ -13,6 +13,7 @@ use bevy::diagnostic::{DiagnosticsStore, FrameTimeDiagnosticsPlugin};
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
+use crate::collision::SelfCollision;
 use crate::ecs::{
     Cloth, ClothMethods, ClothParams, ClothSimulation, ClothStats, ClothStatus, SphereCollider,
     SphereResponse,
@@ -199,6 +200,7 @@ fn inspector_panel(
     method_of: Query<AnyMethodData>,
     mut colliders: Query<(Entity, &mut SphereCollider)>,
     mut materials: Query<&mut ClothMaterial>,
+    mut self_collisions: Query<&mut SelfCollision>,
     mut meshes: ResMut<Assets<Mesh>>,
     diagnostics: Option<Res<DiagnosticsStore>>,
     mut commands: Commands,
@@ -354,6 +356,13 @@ fn inspector_panel(
                         &mut cloth,
                         resolution.as_deref(),
                     );
+                    self_collision_ui(
+                        ui,
+                        &mut commands,
+                        entity,
+                        self_collisions.get_mut(entity).ok(),
+                        cloth.model(),
+                    );
                     // PBD restores rest lengths: it has no stiffness to tune;
                     // a material sets the springs' every step.
                     let stiffness = !matches!(current, Some(AnyMethod::Pbd(_))) && !material;
@@ -432,6 +441,53 @@ fn material_ui(
         material.set_changed();
     }
     true
+}
+
+/// Self-collision on or off, its thickness (up to just below the shortest
+/// rest edge) and friction.
+fn self_collision_ui(
+    ui: &mut egui::Ui,
+    commands: &mut Commands,
+    entity: Entity,
+    current: Option<Mut<SelfCollision>>,
+    model: &ClothModel,
+) {
+    let mut on = current.is_some();
+    let default = SelfCollision::for_model(model);
+    if ui
+        .checkbox(&mut on, "self-collision")
+        .on_hover_text(
+            "every pair of the cloth's vertices kept a thickness apart: inside stiff's \
+             substeps, after the step for the other methods",
+        )
+        .changed()
+    {
+        if on {
+            commands.entity(entity).insert(default);
+        } else {
+            commands.entity(entity).remove::<SelfCollision>();
+        }
+        return;
+    }
+    let Some(mut sc) = current else {
+        return;
+    };
+    let edge = default.thickness / 0.9;
+    if !edge.is_finite() {
+        return;
+    }
+    let (mut thickness, mut friction) = (sc.thickness, sc.friction);
+    ui.add(
+        egui::Slider::new(&mut thickness, 0.1 * edge..=0.99 * edge)
+            .text("thickness (m)")
+            .max_decimals(3),
+    )
+    .on_hover_text("below about 0.71 of the shortest edge, layers may pass through each other");
+    ui.add(egui::Slider::new(&mut friction, 0.0..=1.0).text("self friction"));
+    if (thickness, friction) != (sc.thickness, sc.friction) {
+        sc.thickness = thickness;
+        sc.friction = friction;
+    }
 }
 
 /// Removes a cloth's material; a cloth the panel can rebuild (one with a
@@ -660,11 +716,15 @@ fn stats_ui(
         _ => "the implicit-Euler objective's gradient norm, in newtons",
     });
     ui.label(format!(
-        "max stretch: {:.2} %   contacts: {}",
+        "max stretch: {:.2} %   contacts: {}   self: {}",
         stats.max_stretch * 100.0,
-        stats.contacts
+        stats.contacts,
+        stats.self_contacts
     ))
-    .on_hover_text("the longest spring over its rest length; vertices on a collider");
+    .on_hover_text(
+        "the longest spring over its rest length; vertices on a collider; pairs of the cloth's \
+         own vertices touching (self-collision)",
+    );
     ui.label(format!("energy: {:.3e} J", stats.energy))
         .on_hover_text("kinetic + spring + gravitational (zero height at y = 0)");
     if let Some(error) = stats.relative_error {
