@@ -25,7 +25,10 @@
 //! - [`SelfContacts::resolve`] in every substep of the `stiff` method (a
 //!   vertex moves less than the thickness in one) and after the step of
 //!   every other method: Gauss–Seidel over the pairs in a fixed order,
-//!   each pushed apart by inverse mass along the line between them, then
+//!   each pushed apart by inverse mass along the line between them (or,
+//!   if they passed each other since the substep began, back along the
+//!   line they started on: a fold that closed within a step opens on the
+//!   side it came from), then
 //!   position-based Coulomb friction on their relative motion since the
 //!   substep began. Pinned vertices do not move. The order is the sorted
 //!   pair list: the same result on any thread count.
@@ -115,13 +118,14 @@ pub enum SelfCollisionError {
     Friction(f32),
 }
 
-/// One pair of vertices kept apart: `a < b`, and the least distance
-/// between them.
+/// One pair of vertices kept apart: `a < b`, the least distance between
+/// them and their friction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pair {
     a: u32,
     b: u32,
     min: f32,
+    friction: f32,
 }
 
 /// The most grid cells one vertex's swept box may cover: a vertex moving
@@ -174,29 +178,58 @@ fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
 
 impl SelfContacts {
     /// The pairs of the step: vertices of `model` at `x` moving at `v` for
-    /// `dt` seconds that can come within `thickness` of each other, with
-    /// `slack` (m) added to every swept box for what the step's forces add
-    /// to the straight motion (the plugin passes the fall `|g|·dt²` and a
-    /// quarter of each vertex's own motion on top).
+    /// `dt` seconds that can come within `sc`'s thickness of each other,
+    /// with `slack` (m) added to every swept box for what the step's forces
+    /// add to the straight motion (`stiff` passes the fall `|g|·dt²`; a
+    /// quarter of each vertex's own motion is added on top).
     pub fn find(
         &mut self,
         model: &ClothModel,
         x: &[Vec3A],
         v: &[Vec3A],
         dt: f32,
-        thickness: f32,
+        sc: SelfCollision,
         slack: f32,
+    ) {
+        let thickness = sc.thickness;
+        let n = model.vertex_count().min(x.len()).min(v.len());
+        let pinned = model.pinned();
+        let rest = model.topology().rest_positions();
+        self.find_where(
+            &x[..n],
+            &v[..n],
+            dt,
+            [thickness, slack],
+            |_| 0.5 * thickness,
+            |a, b| {
+                let min = thickness.min(rest[a].distance(rest[b]));
+                (!(pinned[a] && pinned[b]) && min > 0.0).then_some((min, sc.friction))
+            },
+        );
+    }
+
+    /// [`find`](Self::find) over any vertices: cells of `cell` (m), each
+    /// vertex's box grown by `half(i)` plus `slack` plus a quarter of its
+    /// motion, and `pair(a, b)` the least distance and friction of a pair
+    /// (`None`: not a pair).
+    fn find_where(
+        &mut self,
+        x: &[Vec3A],
+        v: &[Vec3A],
+        dt: f32,
+        [cell, slack]: [f32; 2],
+        half: impl Fn(usize) -> f32,
+        pair: impl Fn(usize, usize) -> Option<(f32, f32)>,
     ) {
         self.cells.clear();
         self.pairs.clear();
         self.skipped = 0;
-        let n = model.vertex_count().min(x.len()).min(v.len());
-        if n < 2 || thickness.is_nan() || thickness <= 0.0 {
+        let n = x.len().min(v.len());
+        if n < 2 || cell.is_nan() || cell <= 0.0 {
             return;
         }
-        let inv = 1.0 / thickness;
-        let pinned = model.pinned();
-        let margin = |i: usize| 0.5 * thickness + slack + 0.25 * v[i].length() * dt;
+        let inv = 1.0 / cell;
+        let margin = |i: usize| half(i) + slack + 0.25 * v[i].length() * dt;
         for i in 0..n {
             let end = x[i] + v[i] * dt;
             let m = margin(i);
@@ -222,7 +255,6 @@ impl SelfContacts {
             }
         }
         self.cells.sort_unstable();
-        let rest = model.topology().rest_positions();
         let mut start = 0;
         while start < self.cells.len() {
             let cell = self.cells[start].0;
@@ -232,21 +264,18 @@ impl SelfContacts {
             }
             for (k, &(_, a)) in self.cells[start..end].iter().enumerate() {
                 for &(_, b) in &self.cells[start + k + 1..end] {
-                    let (a, b) = (a as usize, b as usize);
-                    if pinned[a] && pinned[b] {
+                    let (a, b) = (a.min(b) as usize, a.max(b) as usize);
+                    let Some((min, friction)) = pair(a, b) else {
                         continue;
-                    }
-                    let min = thickness.min(rest[a].distance(rest[b]));
-                    if min.is_nan() || min <= 0.0 {
-                        continue;
-                    }
-                    let reach = min + margin(a) + margin(b) - thickness;
+                    };
+                    let reach = min + margin(a) - half(a) + margin(b) - half(b);
                     let d = x[b] - x[a];
                     if closest_approach(d, (v[b] - v[a]) * dt) <= reach {
                         self.pairs.push(Pair {
                             a: a as u32,
                             b: b as u32,
                             min,
+                            friction,
                         });
                     }
                 }
@@ -270,22 +299,29 @@ impl SelfContacts {
         self.skipped
     }
 
-    /// One Gauss–Seidel pass over the step's pairs: each pair closer than
-    /// its least distance is pushed apart by inverse mass, with Coulomb
-    /// `friction` on the pair's relative motion since `start` (the
+    /// One Gauss–Seidel pass over the step's pairs of `model`: each pair
+    /// closer than its least distance is pushed apart by inverse mass, with
+    /// Coulomb friction on the pair's relative motion since `start` (the
     /// substep's start). Returns the pairs that were touching.
     pub fn resolve(
         &self,
         model: &ClothModel,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
-        friction: f32,
     ) -> u32 {
         let pinned = model.pinned();
         let masses = model.masses();
-        let weight = |i: usize| {
-            if pinned[i] { 0.0 } else { 1.0 / masses[i] }
-        };
+        self.resolve_with(x, start, |i| if pinned[i] { 0.0 } else { 1.0 / masses[i] })
+    }
+
+    /// [`resolve`](Self::resolve) with each vertex's inverse mass from
+    /// `weight`.
+    fn resolve_with(
+        &self,
+        x: &mut [Vec3A],
+        start: impl Fn(usize) -> Vec3A,
+        weight: impl Fn(usize) -> f32,
+    ) -> u32 {
         let mut touching = 0;
         for p in &self.pairs {
             let (a, b) = (p.a as usize, p.b as usize);
@@ -303,26 +339,28 @@ impl SelfContacts {
                 continue;
             }
             let dist = d2.sqrt();
-            // Two vertices on the same point: apart along where they came from.
-            let normal = if dist > 1e-6 * p.min {
+            // Apart along the line between them, unless they passed each
+            // other since `start` (or sit on the same point): then back
+            // along where they came from, to their side.
+            let back = start(b) - start(a);
+            let normal = if dist > 1e-6 * p.min && d.dot(back) >= 0.0 {
                 d / dist
             } else {
-                let back = start(b) - start(a);
                 match back.try_normalize() {
                     Some(n) => n,
                     None => continue,
                 }
             };
             touching += 1;
-            let depth = p.min - dist;
+            let depth = p.min - d.dot(normal);
             let (sa, sb) = (wa / w, wb / w);
             let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
-            if friction > 0.0 {
+            if p.friction > 0.0 {
                 let moved = (xb - start(b)) - (xa - start(a));
                 let tangential = moved - moved.dot(normal) * normal;
                 let length = tangential.length();
                 if length > 0.0 {
-                    let cut = tangential * ((friction * depth).min(length) / length);
+                    let cut = tangential * ((p.friction * depth).min(length) / length);
                     xa += cut * sa;
                     xb -= cut * sb;
                 }
@@ -364,16 +402,11 @@ impl SelfContacts {
             .zip(&before.positions)
             .map(|(&x, &b)| (x - b) * inv_dt)
             .collect();
-        self.find(model, &before.positions[..n], &moved, dt, sc.thickness, 0.0);
+        self.find(model, &before.positions[..n], &moved, dt, sc, 0.0);
         let solved: Vec<Vec3A> = state.positions[..n].to_vec();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
-            touching = self.resolve(
-                model,
-                &mut state.positions[..n],
-                |i| before.positions[i],
-                sc.friction,
-            );
+            touching = self.resolve(model, &mut state.positions[..n], |i| before.positions[i]);
             if touching == 0 {
                 break;
             }
@@ -387,6 +420,121 @@ impl SelfContacts {
             *v += (x - s) * inv_dt;
         }
         touching
+    }
+}
+
+/// Cloths against each other, after their steps: every cloth with a
+/// [`SelfCollision`] added ([`add`](Self::add)) with where its step began
+/// and ended, then one broad phase over all of them
+/// ([`resolve`](Self::resolve)) keeps vertices of different cloths the mean
+/// of their thicknesses apart (friction: the mean of theirs), in
+/// [`AFTER_STEP_PASSES`] Gauss–Seidel passes. Pairs within one cloth are
+/// left to its own self-collision.
+#[derive(Clone, Debug, Default)]
+pub struct ClothLayers {
+    contacts: SelfContacts,
+    /// Per vertex of all cloths: the step's start, its end (resolved in
+    /// place), its motion over the step as a velocity, its inverse mass,
+    /// its cloth, half its cloth's thickness and its cloth's friction.
+    start: Vec<Vec3A>,
+    x: Vec<Vec3A>,
+    v: Vec<Vec3A>,
+    weight: Vec<f32>,
+    cloth: Vec<u32>,
+    half: Vec<f32>,
+    friction: Vec<f32>,
+    /// Where each cloth's vertices begin.
+    offsets: Vec<usize>,
+}
+
+impl ClothLayers {
+    /// Empties it for a new step.
+    pub fn clear(&mut self) {
+        self.start.clear();
+        self.x.clear();
+        self.v.clear();
+        self.weight.clear();
+        self.cloth.clear();
+        self.half.clear();
+        self.friction.clear();
+        self.offsets.clear();
+    }
+
+    /// Adds a cloth whose step of `dt` went from `before` to `after`; its
+    /// index among those added.
+    pub fn add(
+        &mut self,
+        model: &ClothModel,
+        before: &[Vec3A],
+        after: &[Vec3A],
+        dt: f32,
+        sc: SelfCollision,
+    ) -> usize {
+        let index = self.offsets.len();
+        self.offsets.push(self.x.len());
+        let n = model.vertex_count().min(before.len()).min(after.len());
+        let inv_dt = 1.0 / dt;
+        for i in 0..n {
+            self.start.push(before[i]);
+            self.x.push(after[i]);
+            self.v.push((after[i] - before[i]) * inv_dt);
+            self.weight.push(if model.pinned()[i] {
+                0.0
+            } else {
+                1.0 / model.masses()[i]
+            });
+            self.cloth.push(index as u32);
+            self.half.push(0.5 * sc.thickness);
+            self.friction.push(sc.friction);
+        }
+        index
+    }
+
+    /// Finds the pairs across cloths over the step of `dt` and pushes them
+    /// apart; returns the pairs touching in the last pass.
+    pub fn resolve(&mut self, dt: f32) -> u32 {
+        if self.offsets.len() < 2 {
+            return 0;
+        }
+        let Self {
+            contacts,
+            start,
+            x,
+            v,
+            weight,
+            cloth,
+            half,
+            friction,
+            ..
+        } = self;
+        let cell = 2.0 * half.iter().copied().fold(0.0, f32::max);
+        contacts.find_where(
+            start,
+            v,
+            dt,
+            [cell, 0.0],
+            |i| half[i],
+            |a, b| {
+                (cloth[a] != cloth[b] && weight[a] + weight[b] > 0.0)
+                    .then(|| (half[a] + half[b], 0.5 * (friction[a] + friction[b])))
+            },
+        );
+        // Pairs from the step's start and motion; the end positions resolved.
+        let mut touching = 0;
+        for _ in 0..AFTER_STEP_PASSES {
+            touching = contacts.resolve_with(x, |i| start[i], |i| weight[i]);
+            if touching == 0 {
+                break;
+            }
+        }
+        touching
+    }
+
+    /// Cloth `index`'s resolved positions (as many as it added).
+    pub fn positions(&self, index: usize) -> &[Vec3A] {
+        let from = self.offsets.get(index).copied().unwrap_or(self.x.len());
+        let to = self.offsets.get(index + 1).copied().unwrap_or(self.x.len());
+        &self.x[from..to]
     }
 }
 
@@ -426,8 +574,34 @@ pub fn count_intersections(
     x: &[Vec3A],
     check: &mut IntersectionCheck,
 ) -> usize {
+    count_through((model, x), (model, x), true, check)
+}
+
+/// The exact check between two cloths: how many mesh edges of either pass
+/// through a triangle of the other. 0 for two surfaces that do not pass
+/// through each other.
+pub fn count_crossings(
+    a: (&ClothModel, &[Vec3A]),
+    b: (&ClothModel, &[Vec3A]),
+    check: &mut IntersectionCheck,
+) -> usize {
+    count_through(a, b, false, check) + count_through(b, a, false, check)
+}
+
+/// Edges of the first cloth through triangles of the second; `same` when
+/// they are one cloth (an edge and a triangle sharing a vertex are then
+/// not counted).
+fn count_through(
+    (edge_model, xe): (&ClothModel, &[Vec3A]),
+    (model, x): (&ClothModel, &[Vec3A]),
+    same: bool,
+    check: &mut IntersectionCheck,
+) -> usize {
     let triangles = model.topology().triangles();
-    if triangles.is_empty() || x.len() < model.vertex_count() {
+    if triangles.is_empty()
+        || x.len() < model.vertex_count()
+        || xe.len() < edge_model.vertex_count()
+    {
         return 0;
     }
     let corners = |t: &[u32; 3]| t.map(|v| x[v as usize]);
@@ -461,7 +635,7 @@ pub fn count_intersections(
     check.cells.sort_unstable();
     // Each edge once.
     check.edges.clear();
-    for t in triangles {
+    for t in edge_model.topology().triangles() {
         for (u, w) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
             check.edges.push((u.min(w), u.max(w)));
         }
@@ -471,7 +645,7 @@ pub fn count_intersections(
     let mut count = 0;
     for &(u, w) in &check.edges {
         {
-            let (p, q) = (x[u as usize], x[w as usize]);
+            let (p, q) = (xe[u as usize], xe[w as usize]);
             let (lo, hi) = (cell_of(p.min(q), inv), cell_of(p.max(q), inv));
             let span = span(lo, hi);
             if !(1..=MAX_CELLS).contains(&span) {
@@ -496,7 +670,7 @@ pub fn count_intersections(
             check.candidates.dedup();
             for &other in &check.candidates {
                 let tri = triangles[other as usize];
-                if tri.contains(&u) || tri.contains(&w) {
+                if same && (tri.contains(&u) || tri.contains(&w)) {
                     continue;
                 }
                 if segment_hits_triangle(p, q, corners(&tri)) {

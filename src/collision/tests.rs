@@ -333,10 +333,10 @@ mod self_collision {
         x[b] = x[a] + Vec3A::Y * 0.001;
         let v = vec![Vec3A::ZERO; x.len()];
         let mut contacts = SelfContacts::default();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
         assert!(contacts.pair_count() > 0);
         let start = x.clone();
-        let touching = contacts.resolve(&model, &mut x, |i| start[i], 0.0);
+        let touching = contacts.resolve(&model, &mut x, |i| start[i]);
         assert_eq!(touching, 1);
         assert!((x[a].distance(x[b]) - sc.thickness).abs() < 1e-5);
         // Equal masses share the push along y.
@@ -345,8 +345,8 @@ mod self_collision {
         let mut model = model;
         model.set_pins(vec![0]).unwrap();
         let mut x = start.clone();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
-        contacts.resolve(&model, &mut x, |i| start[i], 0.0);
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
+        contacts.resolve(&model, &mut x, |i| start[i]);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
     }
@@ -359,7 +359,7 @@ mod self_collision {
         let mut v = vec![Vec3A::ZERO; x.len()];
         v[3] = Vec3A::new(f32::INFINITY, 0.0, f32::NAN);
         let mut contacts = SelfContacts::default();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc.thickness, 0.0);
+        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
         assert_eq!(contacts.skipped(), 1);
         let mut check = IntersectionCheck::default();
         let mut y = x.clone();

@@ -112,6 +112,9 @@ impl Plugin for ClothCorePlugin {
                         .after(place_and_pin)
                         .run_if(any_with_component::<super::ClothAttachments>),
                     guard_and_measure.in_set(ClothSystems::SyncOut),
+                    super::collide_cloths
+                        .in_set(ClothSystems::Collide)
+                        .run_if(any_with_component::<crate::collision::SelfCollision>),
                 )
                     .run_if(any_with_component::<Cloth>),
             )

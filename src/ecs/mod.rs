@@ -52,11 +52,13 @@ macro_rules! for_each_cloth {
     };
 }
 pub(crate) use for_each_cloth;
+pub(crate) use layers::collide_cloths;
 
 mod attach;
 mod collision;
 mod components;
 mod core;
+mod layers;
 mod mesh_source;
 mod save;
 mod schedule;

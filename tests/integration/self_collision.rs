@@ -4,7 +4,9 @@
 //! with the cloth still running.
 
 use bevy::prelude::*;
-use bevy_cloth::collision::self_contact::{IntersectionCheck, count_intersections};
+use bevy_cloth::collision::self_contact::{
+    IntersectionCheck, count_crossings, count_intersections,
+};
 use bevy_cloth::prelude::*;
 
 use crate::common::{app, run_steps, stats};
@@ -95,4 +97,70 @@ fn a_bad_setting_is_refused_and_the_cloth_keeps_running() {
     assert_eq!(s.self_contacts, 0);
     let c = app.world().get::<Cloth>(entity).unwrap();
     assert!(c.state().positions.iter().all(|p| p.is_finite()));
+}
+
+/// A 1 m sheet of 16² cotton, flat, at `height`, turned by `turn` about y.
+fn flat_sheet(app: &mut App, height: f32, turn: f32, self_collision: bool) -> Entity {
+    let model = ClothBuilder::grid(
+        16,
+        16,
+        Vec3::new(-0.5, 0.0, -0.5),
+        Vec3::new(-0.5, 0.0, 0.5),
+        Vec3::new(0.5, 0.0, -0.5),
+    )
+    .build()
+    .unwrap();
+    let sc = SelfCollision::for_model(&model);
+    let at = Transform::from_xyz(0.0, height, 0.0).with_rotation(Quat::from_rotation_y(turn));
+    let mut entity = app
+        .world_mut()
+        .spawn((Cloth::new(model), ClothMaterial::COTTON, at));
+    if self_collision {
+        entity.insert(sc);
+    }
+    let e = entity.id();
+    AnyMethod::default().insert(&mut app.world_mut().commands().entity(e));
+    e
+}
+
+/// A sheet dropped onto another on the ground: the most edges of either
+/// through the other at any step over two seconds.
+fn sheet_on_sheet(self_collision: bool) -> usize {
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+    app.world_mut()
+        .spawn((PlaneCollider::new(0.5), Transform::default()));
+    let lower = flat_sheet(&mut app, 0.05, 0.0, self_collision);
+    let upper = flat_sheet(&mut app, 0.4, 0.35, self_collision);
+    let mut check = IntersectionCheck::default();
+    let mut worst = 0;
+    for _ in 0..120 {
+        run_steps(&mut app, 1);
+        let world = app.world();
+        let (a, b) = (
+            world.get::<Cloth>(lower).unwrap(),
+            world.get::<Cloth>(upper).unwrap(),
+        );
+        let now = count_crossings(
+            (a.model(), &a.state().positions),
+            (b.model(), &b.state().positions),
+            &mut check,
+        );
+        worst = worst.max(now);
+    }
+    for e in [lower, upper] {
+        assert!(stats(&app, e).is_running());
+    }
+    worst
+}
+
+#[test]
+fn a_sheet_falling_on_a_sheet_stays_on_top() {
+    let without = sheet_on_sheet(false);
+    assert!(
+        without > 0,
+        "without it the sheets must pass through each other"
+    );
+    let with = sheet_on_sheet(true);
+    assert_eq!(with, 0, "{without} crossings at worst without");
 }

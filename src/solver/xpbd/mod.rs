@@ -419,7 +419,7 @@ impl Method for XpbdSolver {
         if let Some(sc) = self_collision {
             let slack = gravity.length() * (params.dt * params.dt) as f32;
             ws.self_contacts
-                .find(model, x, v, params.dt as f32, sc.thickness, slack);
+                .find(model, x, v, params.dt as f32, sc, slack);
         }
         pass(x, v, prev, (&[], &[]), false, true);
         let springs = ColouredSprings::new(
@@ -453,10 +453,8 @@ impl Method for XpbdSolver {
                 }
             }
             sweep(params.simd, springs, x);
-            if let Some(sc) = self_collision {
-                self_held = ws
-                    .self_contacts
-                    .resolve(model, x, |i| prev[i][0], sc.friction);
+            if self_collision.is_some() {
+                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0]);
             }
             contacts_held = pass(
                 x,
