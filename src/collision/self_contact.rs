@@ -25,10 +25,7 @@
 //! - [`SelfContacts::resolve`] in every substep of the `stiff` method (a
 //!   vertex moves less than the thickness in one) and after the step of
 //!   every other method: Gauss–Seidel over the pairs in a fixed order,
-//!   each pushed apart by inverse mass along the line between them (or,
-//!   if they passed each other since the substep began, back along the
-//!   line they started on: a fold that closed within a step opens on the
-//!   side it came from), then
+//!   each pushed apart by inverse mass along the line between them, then
 //!   position-based Coulomb friction on their relative motion since the
 //!   substep began. Pinned vertices do not move. The order is the sorted
 //!   pair list: the same result on any thread count.
@@ -339,20 +336,18 @@ impl SelfContacts {
                 continue;
             }
             let dist = d2.sqrt();
-            // Apart along the line between them, unless they passed each
-            // other since `start` (or sit on the same point): then back
-            // along where they came from, to their side.
-            let back = start(b) - start(a);
-            let normal = if dist > 1e-6 * p.min && d.dot(back) >= 0.0 {
+            // Two vertices on the same point: apart along where they came from.
+            let normal = if dist > 1e-6 * p.min {
                 d / dist
             } else {
+                let back = start(b) - start(a);
                 match back.try_normalize() {
                     Some(n) => n,
                     None => continue,
                 }
             };
             touching += 1;
-            let depth = p.min - d.dot(normal);
+            let depth = p.min - dist;
             let (sa, sb) = (wa / w, wb / w);
             let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
             if p.friction > 0.0 {

@@ -123,15 +123,20 @@ fn flat_sheet(app: &mut App, height: f32, turn: f32, self_collision: bool) -> En
     e
 }
 
-/// A sheet dropped onto another on the ground: the most edges of either
+/// A sheet dropped onto another over a ball on the ground: the most edges of either
 /// through the other at any step over two seconds.
 fn sheet_on_sheet(self_collision: bool) -> usize {
     let mut app = app();
     app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
     app.world_mut()
         .spawn((PlaneCollider::new(0.5), Transform::default()));
-    let lower = flat_sheet(&mut app, 0.05, 0.0, self_collision);
-    let upper = flat_sheet(&mut app, 0.4, 0.35, self_collision);
+    // A ball on the ground for the sheets to drape over.
+    app.world_mut().spawn((
+        SphereCollider::new(0.3).with_friction(0.5),
+        Transform::from_xyz(0.0, 0.3, 0.0),
+    ));
+    let lower = flat_sheet(&mut app, 0.65, 0.0, self_collision);
+    let upper = flat_sheet(&mut app, 0.9, 0.35, self_collision);
     let mut check = IntersectionCheck::default();
     let mut worst = 0;
     for _ in 0..120 {
