@@ -140,6 +140,13 @@ pub struct SelfContacts {
     pairs: Vec<Pair>,
     /// Vertices left out of the step's pairs (their swept box was too large).
     skipped: usize,
+    /// The cloth's own vertices among the step's: the others' come after.
+    own: usize,
+    /// The other cloths' vertices of the step.
+    others: Vec<OtherVertex>,
+    /// Scratch: the cloth's and the other cloths' positions and velocities.
+    all_x: Vec<Vec3A>,
+    all_v: Vec<Vec3A>,
 }
 
 /// A cell's key: its integer coordinates packed 21 bits each.
@@ -173,36 +180,107 @@ fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
     (d + t * dd).length()
 }
 
+/// A vertex of another cloth, as this cloth's step sees it: where it is at
+/// the step's start and its velocity (it moves in a straight line through
+/// the step), its inverse mass (0: pinned), half its cloth's thickness and
+/// its cloth's friction. Cloths with a [`SelfCollision`] each see the
+/// others' vertices so and take their share of each push (by inverse
+/// mass), so that two cloths keep each other apart.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OtherVertex {
+    /// Position at the step's start.
+    pub position: Vec3A,
+    /// Velocity over the step.
+    pub velocity: Vec3A,
+    /// Inverse mass (0 for a pinned vertex).
+    pub weight: f32,
+    /// Half its cloth's thickness.
+    pub half_thickness: f32,
+    /// Its cloth's friction.
+    pub friction: f32,
+}
+
+/// A cloth's self-collision as its step reads it: its setting, and the
+/// vertices of the other cloths it collides with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfCollisionInput<'a> {
+    /// The cloth's own setting (validated).
+    pub setting: SelfCollision,
+    /// Vertices of the other cloths with a [`SelfCollision`] (in two
+    /// lists: those gathered before this cloth's and after).
+    pub others: [&'a [OtherVertex]; 2],
+}
+
+impl SelfCollisionInput<'_> {
+    /// The setting alone, with no other cloths.
+    pub fn alone(setting: SelfCollision) -> SelfCollisionInput<'static> {
+        SelfCollisionInput {
+            setting,
+            others: [&[], &[]],
+        }
+    }
+}
+
 impl SelfContacts {
     /// The pairs of the step: vertices of `model` at `x` moving at `v` for
-    /// `dt` seconds that can come within `sc`'s thickness of each other,
-    /// with `slack` (m) added to every swept box for what the step's forces
-    /// add to the straight motion (`stiff` passes the fall `|g|·dt²`; a
-    /// quarter of each vertex's own motion is added on top).
+    /// `dt` seconds that can come within `sc`'s thickness of each other or
+    /// within the mean thickness of a vertex of another cloth, with `slack`
+    /// (m) added to every swept box for what the step's forces add to the
+    /// straight motion (`stiff` passes the fall `|g|·dt²`; a quarter of
+    /// each vertex's own motion is added on top).
     pub fn find(
         &mut self,
         model: &ClothModel,
         x: &[Vec3A],
         v: &[Vec3A],
         dt: f32,
-        sc: SelfCollision,
+        sc: SelfCollisionInput<'_>,
         slack: f32,
     ) {
-        let thickness = sc.thickness;
+        let (thickness, friction) = (sc.setting.thickness, sc.setting.friction);
         let n = model.vertex_count().min(x.len()).min(v.len());
         let pinned = model.pinned();
         let rest = model.topology().rest_positions();
+        let mut others = core::mem::take(&mut self.others);
+        others.clear();
+        others.extend(sc.others.into_iter().flatten());
+        let mut xs = core::mem::take(&mut self.all_x);
+        let mut vs = core::mem::take(&mut self.all_v);
+        xs.clear();
+        vs.clear();
+        xs.extend_from_slice(&x[..n]);
+        vs.extend_from_slice(&v[..n]);
+        xs.extend(others.iter().map(|o| o.position));
+        vs.extend(others.iter().map(|o| o.velocity));
+        let half = 0.5 * thickness;
         self.find_where(
-            &x[..n],
-            &v[..n],
+            &xs,
+            &vs,
             dt,
             [thickness, slack],
-            |_| 0.5 * thickness,
-            |a, b| {
-                let min = thickness.min(rest[a].distance(rest[b]));
-                (!(pinned[a] && pinned[b]) && min > 0.0).then_some((min, sc.friction))
+            |i| {
+                if i < n {
+                    half
+                } else {
+                    others[i - n].half_thickness
+                }
+            },
+            |a, b| match (a < n, b < n) {
+                (true, true) => {
+                    let min = thickness.min(rest[a].distance(rest[b]));
+                    (!(pinned[a] && pinned[b]) && min > 0.0).then_some((min, friction))
+                }
+                (true, false) => {
+                    let o = &others[b - n];
+                    (!pinned[a]).then_some((half + o.half_thickness, 0.5 * (friction + o.friction)))
+                }
+                _ => None,
             },
         );
+        self.own = n;
+        self.others = others;
+        self.all_x = xs;
+        self.all_v = vs;
     }
 
     /// [`find`](Self::find) over any vertices: cells of `cell` (m), each
@@ -299,31 +377,46 @@ impl SelfContacts {
     /// One Gauss–Seidel pass over the step's pairs of `model`: each pair
     /// closer than its least distance is pushed apart by inverse mass, with
     /// Coulomb friction on the pair's relative motion since `start` (the
-    /// substep's start). Returns the pairs that were touching.
+    /// substep's start). The other cloths' vertices are where they are at
+    /// `times[1]` seconds into the step (at `times[0]` for `start`), and do
+    /// not move: each cloth takes its own share of the push. Returns the
+    /// pairs that were touching.
     pub fn resolve(
         &self,
         model: &ClothModel,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
+        times: [f32; 2],
     ) -> u32 {
         let pinned = model.pinned();
         let masses = model.masses();
-        self.resolve_with(x, start, |i| if pinned[i] { 0.0 } else { 1.0 / masses[i] })
-    }
-
-    /// [`resolve`](Self::resolve) with each vertex's inverse mass from
-    /// `weight`.
-    fn resolve_with(
-        &self,
-        x: &mut [Vec3A],
-        start: impl Fn(usize) -> Vec3A,
-        weight: impl Fn(usize) -> f32,
-    ) -> u32 {
+        let own = self.own;
+        let other = |i: usize, t: f32| {
+            let o = &self.others[i - own];
+            o.position + o.velocity * t
+        };
+        let weight = |i: usize| {
+            if i >= own {
+                self.others[i - own].weight
+            } else if pinned[i] {
+                0.0
+            } else {
+                1.0 / masses[i]
+            }
+        };
         let mut touching = 0;
         for p in &self.pairs {
             let (a, b) = (p.a as usize, p.b as usize);
-            let (Some(&xa), Some(&xb)) = (x.get(a), x.get(b)) else {
+            let Some(&xa) = x.get(a) else {
                 continue;
+            };
+            let (xb, start_b) = if b < own {
+                match x.get(b) {
+                    Some(&xb) => (xb, start(b)),
+                    None => continue,
+                }
+            } else {
+                (other(b, times[1]), other(b, times[0]))
             };
             let d = xb - xa;
             let d2 = d.length_squared();
@@ -340,8 +433,7 @@ impl SelfContacts {
             let normal = if dist > 1e-6 * p.min {
                 d / dist
             } else {
-                let back = start(b) - start(a);
-                match back.try_normalize() {
+                match (start_b - start(a)).try_normalize() {
                     Some(n) => n,
                     None => continue,
                 }
@@ -351,7 +443,7 @@ impl SelfContacts {
             let (sa, sb) = (wa / w, wb / w);
             let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
             if p.friction > 0.0 {
-                let moved = (xb - start(b)) - (xa - start(a));
+                let moved = (xb - start_b) - (xa - start(a));
                 let tangential = moved - moved.dot(normal) * normal;
                 let length = tangential.length();
                 if length > 0.0 {
@@ -361,7 +453,9 @@ impl SelfContacts {
                 }
             }
             x[a] = xa;
-            x[b] = xb;
+            if b < own {
+                x[b] = xb;
+            }
         }
         touching
     }
@@ -373,8 +467,9 @@ impl SelfContacts {
 pub const AFTER_STEP_PASSES: u32 = 4;
 
 impl SelfContacts {
-    /// Self-collision after a step from `before` to `state`: the pairs found
-    /// from the step's start and its motion, pushed apart in
+    /// Self-collision after a step from `before` to `state` (and the other
+    /// cloths' vertices, where their velocities take them over the step):
+    /// the pairs found from the step's start and its motion, pushed apart in
     /// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
     /// moved. Returns the pairs touching in the last pass.
     pub fn resolve_after_step(
@@ -383,7 +478,7 @@ impl SelfContacts {
         state: &mut ClothState,
         before: &ClothState,
         params: &crate::solver::StepParams,
-        sc: SelfCollision,
+        sc: SelfCollisionInput<'_>,
     ) -> u32 {
         let n = model.vertex_count();
         if before.positions.len() < n || state.positions.len() < n {
@@ -401,7 +496,12 @@ impl SelfContacts {
         let solved: Vec<Vec3A> = state.positions[..n].to_vec();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
-            touching = self.resolve(model, &mut state.positions[..n], |i| before.positions[i]);
+            touching = self.resolve(
+                model,
+                &mut state.positions[..n],
+                |i| before.positions[i],
+                [0.0, dt],
+            );
             if touching == 0 {
                 break;
             }
@@ -415,121 +515,6 @@ impl SelfContacts {
             *v += (x - s) * inv_dt;
         }
         touching
-    }
-}
-
-/// Cloths against each other, after their steps: every cloth with a
-/// [`SelfCollision`] added ([`add`](Self::add)) with where its step began
-/// and ended, then one broad phase over all of them
-/// ([`resolve`](Self::resolve)) keeps vertices of different cloths the mean
-/// of their thicknesses apart (friction: the mean of theirs), in
-/// [`AFTER_STEP_PASSES`] Gauss–Seidel passes. Pairs within one cloth are
-/// left to its own self-collision.
-#[derive(Clone, Debug, Default)]
-pub struct ClothLayers {
-    contacts: SelfContacts,
-    /// Per vertex of all cloths: the step's start, its end (resolved in
-    /// place), its motion over the step as a velocity, its inverse mass,
-    /// its cloth, half its cloth's thickness and its cloth's friction.
-    start: Vec<Vec3A>,
-    x: Vec<Vec3A>,
-    v: Vec<Vec3A>,
-    weight: Vec<f32>,
-    cloth: Vec<u32>,
-    half: Vec<f32>,
-    friction: Vec<f32>,
-    /// Where each cloth's vertices begin.
-    offsets: Vec<usize>,
-}
-
-impl ClothLayers {
-    /// Empties it for a new step.
-    pub fn clear(&mut self) {
-        self.start.clear();
-        self.x.clear();
-        self.v.clear();
-        self.weight.clear();
-        self.cloth.clear();
-        self.half.clear();
-        self.friction.clear();
-        self.offsets.clear();
-    }
-
-    /// Adds a cloth whose step of `dt` went from `before` to `after`; its
-    /// index among those added.
-    pub fn add(
-        &mut self,
-        model: &ClothModel,
-        before: &[Vec3A],
-        after: &[Vec3A],
-        dt: f32,
-        sc: SelfCollision,
-    ) -> usize {
-        let index = self.offsets.len();
-        self.offsets.push(self.x.len());
-        let n = model.vertex_count().min(before.len()).min(after.len());
-        let inv_dt = 1.0 / dt;
-        for i in 0..n {
-            self.start.push(before[i]);
-            self.x.push(after[i]);
-            self.v.push((after[i] - before[i]) * inv_dt);
-            self.weight.push(if model.pinned()[i] {
-                0.0
-            } else {
-                1.0 / model.masses()[i]
-            });
-            self.cloth.push(index as u32);
-            self.half.push(0.5 * sc.thickness);
-            self.friction.push(sc.friction);
-        }
-        index
-    }
-
-    /// Finds the pairs across cloths over the step of `dt` and pushes them
-    /// apart; returns the pairs touching in the last pass.
-    pub fn resolve(&mut self, dt: f32) -> u32 {
-        if self.offsets.len() < 2 {
-            return 0;
-        }
-        let Self {
-            contacts,
-            start,
-            x,
-            v,
-            weight,
-            cloth,
-            half,
-            friction,
-            ..
-        } = self;
-        let cell = 2.0 * half.iter().copied().fold(0.0, f32::max);
-        contacts.find_where(
-            start,
-            v,
-            dt,
-            [cell, 0.0],
-            |i| half[i],
-            |a, b| {
-                (cloth[a] != cloth[b] && weight[a] + weight[b] > 0.0)
-                    .then(|| (half[a] + half[b], 0.5 * (friction[a] + friction[b])))
-            },
-        );
-        // Pairs from the step's start and motion; the end positions resolved.
-        let mut touching = 0;
-        for _ in 0..AFTER_STEP_PASSES {
-            touching = contacts.resolve_with(x, |i| start[i], |i| weight[i]);
-            if touching == 0 {
-                break;
-            }
-        }
-        touching
-    }
-
-    /// Cloth `index`'s resolved positions (as many as it added).
-    pub fn positions(&self, index: usize) -> &[Vec3A] {
-        let from = self.offsets.get(index).copied().unwrap_or(self.x.len());
-        let to = self.offsets.get(index + 1).copied().unwrap_or(self.x.len());
-        &self.x[from..to]
     }
 }
 

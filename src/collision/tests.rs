@@ -248,7 +248,9 @@ fn penalty_shapes_match_their_projection_contacts_in_f32_and_f64() {
 mod self_collision {
     use bevy::math::{Affine3A, Vec3, Vec3A};
 
-    use crate::collision::self_contact::{IntersectionCheck, SelfContacts, count_intersections};
+    use crate::collision::self_contact::{
+        IntersectionCheck, SelfCollisionInput, SelfContacts, count_intersections,
+    };
     use crate::collision::{SelfCollision, SelfCollisionError};
     use crate::model::{ClothBuilder, ClothModel, ClothState};
     use crate::solver::StepParams;
@@ -333,10 +335,17 @@ mod self_collision {
         x[b] = x[a] + Vec3A::Y * 0.001;
         let v = vec![Vec3A::ZERO; x.len()];
         let mut contacts = SelfContacts::default();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
+        contacts.find(
+            &model,
+            &x,
+            &v,
+            1.0 / 60.0,
+            SelfCollisionInput::alone(sc),
+            0.0,
+        );
         assert!(contacts.pair_count() > 0);
         let start = x.clone();
-        let touching = contacts.resolve(&model, &mut x, |i| start[i]);
+        let touching = contacts.resolve(&model, &mut x, |i| start[i], [0.0; 2]);
         assert_eq!(touching, 1);
         assert!((x[a].distance(x[b]) - sc.thickness).abs() < 1e-5);
         // Equal masses share the push along y.
@@ -345,8 +354,15 @@ mod self_collision {
         let mut model = model;
         model.set_pins(vec![0]).unwrap();
         let mut x = start.clone();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
-        contacts.resolve(&model, &mut x, |i| start[i]);
+        contacts.find(
+            &model,
+            &x,
+            &v,
+            1.0 / 60.0,
+            SelfCollisionInput::alone(sc),
+            0.0,
+        );
+        contacts.resolve(&model, &mut x, |i| start[i], [0.0; 2]);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
     }
@@ -359,7 +375,14 @@ mod self_collision {
         let mut v = vec![Vec3A::ZERO; x.len()];
         v[3] = Vec3A::new(f32::INFINITY, 0.0, f32::NAN);
         let mut contacts = SelfContacts::default();
-        contacts.find(&model, &x, &v, 1.0 / 60.0, sc, 0.0);
+        contacts.find(
+            &model,
+            &x,
+            &v,
+            1.0 / 60.0,
+            SelfCollisionInput::alone(sc),
+            0.0,
+        );
         assert_eq!(contacts.skipped(), 1);
         let mut check = IntersectionCheck::default();
         let mut y = x.clone();
@@ -411,7 +434,7 @@ mod self_collision {
                         &mut state,
                         &before,
                         &params,
-                        sc,
+                        SelfCollisionInput::alone(sc),
                     );
                 }
                 worst = worst.max(count_intersections(&model, &state.positions, &mut check));

@@ -168,7 +168,6 @@ impl Plugin for SphereCollisionPlugin {
                     gather_spheres.in_set(ClothSystems::SyncIn),
                     project_cloths
                         .in_set(ClothSystems::Collide)
-                        .after(super::collide_cloths)
                         .run_if(any_with_component::<Cloth>),
                 )
                     .run_if(spheres_present),
@@ -429,7 +428,6 @@ impl Plugin for ShapeCollisionPlugin {
                     project_cloths_on_shapes
                         .in_set(ClothSystems::Collide)
                         .after(project_cloths)
-                        .after(super::collide_cloths)
                         .run_if(any_with_component::<Cloth>),
                 )
                     .run_if(shapes_present),

@@ -55,6 +55,7 @@ impl Plugin for ClothCorePlugin {
             .init_resource::<ClothMethods>()
             .init_resource::<ClothSimulation>()
             .init_resource::<ClothColliders>()
+            .init_resource::<super::ClothLayerVertices>()
             .add_message::<ClothDiverged>()
             .add_message::<ClothNotConverged>()
             .add_schedule(cloth_schedule())
@@ -112,8 +113,8 @@ impl Plugin for ClothCorePlugin {
                         .after(place_and_pin)
                         .run_if(any_with_component::<super::ClothAttachments>),
                     guard_and_measure.in_set(ClothSystems::SyncOut),
-                    super::collide_cloths
-                        .in_set(ClothSystems::Collide)
+                    super::layers::gather_layers
+                        .in_set(ClothSystems::Forces)
                         .run_if(any_with_component::<crate::collision::SelfCollision>),
                 )
                     .run_if(any_with_component::<Cloth>),

@@ -1,89 +1,80 @@
-//! Cloths against each other (issue N, item 2): every running cloth with a
-//! [`SelfCollision`] is kept off every other such cloth after their steps,
-//! in one broad phase across them ([`ClothLayers`]).
+//! Cloths against each other (issue N, item 2): before the step, the
+//! vertices of every running cloth with a valid [`SelfCollision`] are
+//! gathered into one list ([`ClothLayerVertices`]); each such cloth's step
+//! then sees the others' vertices moving in straight lines through the
+//! step, and keeps its own off them by its share of each push
+//! ([`OtherVertex`]): inside `stiff`'s substeps, after the step for the
+//! other methods.
+
+use core::ops::Range;
 
 use bevy::prelude::*;
 
 use super::{Cloth, ClothStats};
 use crate::collision::SelfCollision;
-use crate::collision::self_contact::ClothLayers;
+use crate::collision::self_contact::OtherVertex;
 
-/// This step's cloths in [`ClothLayers`], in entity order.
-#[derive(Default)]
-pub(crate) struct Added(Vec<Entity>);
+/// The vertices of the cloths with a [`SelfCollision`], gathered before the
+/// step, cloth by cloth in entity order.
+#[derive(Resource, Default, Debug)]
+pub(crate) struct ClothLayerVertices {
+    cloths: Vec<(Entity, Range<usize>)>,
+    vertices: Vec<OtherVertex>,
+}
 
-/// Keeps cloths with a [`SelfCollision`] off each other, in
-/// [`ClothSystems::Collide`](super::ClothSystems::Collide) before the
-/// colliders' projection (so a collider wins). A vertex moved by another
-/// cloth counts as one of its cloth's contacts, and its velocity changes by
-/// that move over the step; the guard measures the cloth again.
-pub(crate) fn collide_cloths(
-    time: Res<Time>,
-    mut layers: Local<ClothLayers>,
-    mut added: Local<Added>,
-    mut cloths: Query<(Entity, &mut Cloth, &SelfCollision, &mut ClothStats)>,
-) {
-    let dt = time.delta_secs();
-    if dt <= 0.0 {
-        return;
+impl ClothLayerVertices {
+    /// The vertices of every gathered cloth but `entity`: those before its
+    /// own and those after (all of them if it was not gathered).
+    pub(crate) fn others(&self, entity: Entity) -> [&[OtherVertex]; 2] {
+        match self.cloths.binary_search_by_key(&entity, |(e, _)| *e) {
+            Ok(k) => {
+                let own = self.cloths[k].1.clone();
+                [&self.vertices[..own.start], &self.vertices[own.end..]]
+            }
+            Err(_) => [&self.vertices[..], &[]],
+        }
     }
-    layers.clear();
-    added.0.clear();
-    let mut order: Vec<Entity> = cloths.iter().map(|(e, ..)| e).collect();
+}
+
+/// Gathers [`ClothLayerVertices`] (empty with fewer than two such cloths:
+/// a lone cloth has only itself to meet).
+pub(crate) fn gather_layers(
+    mut layers: ResMut<ClothLayerVertices>,
+    cloths: Query<(Entity, &Cloth, &SelfCollision, &ClothStats)>,
+) {
+    layers.cloths.clear();
+    layers.vertices.clear();
+    let mut order: Vec<(Entity, &Cloth, &SelfCollision)> = cloths
+        .iter()
+        .filter(|(_, cloth, sc, stats)| {
+            cloth.initialized && stats.is_running() && sc.validate(cloth.model()).is_ok()
+        })
+        .map(|(e, cloth, sc, _)| (e, cloth, sc))
+        .collect();
     if order.len() < 2 {
         return;
     }
-    order.sort_unstable();
-    for e in order {
-        let Ok((_, cloth, sc, stats)) = cloths.get(e) else {
-            continue;
-        };
+    order.sort_unstable_by_key(|(e, ..)| *e);
+    for (e, cloth, sc) in order {
         let model = cloth.model();
-        let n = model.vertex_count();
-        if !cloth.initialized
-            || !stats.is_running()
-            || sc.validate(model).is_err()
-            || cloth.last_good.positions.len() != n
-            || cloth.state.positions.len() != n
+        let start = layers.vertices.len();
+        let state = &cloth.state;
+        for (i, (&position, &velocity)) in state.positions.iter().zip(&state.velocities).enumerate()
         {
-            continue;
+            let weight = if model.pinned()[i] {
+                0.0
+            } else {
+                1.0 / model.masses()[i]
+            };
+            layers.vertices.push(OtherVertex {
+                position,
+                velocity,
+                weight,
+                half_thickness: 0.5 * sc.thickness,
+                friction: sc.friction,
+            });
         }
-        layers.add(
-            model,
-            &cloth.last_good.positions,
-            &cloth.state.positions,
-            dt,
-            *sc,
-        );
-        added.0.push(e);
-    }
-    if added.0.len() < 2 {
-        return;
-    }
-    layers.resolve(dt);
-    let inv_dt = 1.0 / dt;
-    for (index, &e) in added.0.iter().enumerate() {
-        let Ok((_, mut cloth, _, mut stats)) = cloths.get_mut(e) else {
-            continue;
-        };
-        let cloth = &mut *cloth;
-        let mut moved = 0;
-        for ((x, v), &resolved) in cloth
-            .state
-            .positions
-            .iter_mut()
-            .zip(cloth.state.velocities.iter_mut())
-            .zip(layers.positions(index))
-        {
-            if resolved != *x {
-                *v += (resolved - *x) * inv_dt;
-                *x = resolved;
-                moved += 1;
-            }
-        }
-        if moved > 0 {
-            cloth.measured = None;
-            stats.contacts += moved;
-        }
+        let end = layers.vertices.len();
+        layers.cloths.push((e, start..end));
     }
 }

@@ -15,11 +15,11 @@ use bevy::reflect::GetTypeRegistration;
 
 use crate::character::ClothSkin;
 use crate::collision::SelfCollision;
-use crate::collision::self_contact::SelfContacts;
+use crate::collision::self_contact::{SelfCollisionInput, SelfContacts};
 use crate::collision::{Capsule, PenaltySphere, Shape};
 use crate::ecs::{
-    Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothMethods, ClothParams, ClothSchedule,
-    ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
+    Cloth, ClothColliders, ClothCorePlugin, ClothGuard, ClothLayerVertices, ClothMethods,
+    ClothParams, ClothSchedule, ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
 };
 use crate::solver::SkinInput;
 use crate::solver::guard::{GuardError, guarded_step};
@@ -209,6 +209,7 @@ fn refuse(entity: Entity, name: &str, stats: &mut ClothStats, error: StepError) 
 fn step_cloths<M: ClothMethod>(
     time: Res<Time>,
     colliders: Res<ClothColliders>,
+    layers: Res<ClothLayerVertices>,
     mut cloths: Query<StepData<M>>,
 ) {
     let dt = time.delta_secs_f64();
@@ -297,7 +298,10 @@ fn step_cloths<M: ClothMethod>(
         // A self-collision that does not fit the cloth is left out, with one
         // warning each time it is set.
         let self_collision = self_collision.and_then(|sc| match sc.validate(model) {
-            Ok(()) => Some(*sc),
+            Ok(()) => Some(SelfCollisionInput {
+                setting: *sc,
+                others: layers.others(entity),
+            }),
             Err(error) => {
                 if sc.is_changed() {
                     warn!(

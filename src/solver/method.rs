@@ -46,12 +46,13 @@ pub struct StepInput<'a> {
     /// [`Method::step`].
     pub skin: Option<SkinInput<'a>>,
     /// The cloth's self-collision ([`SelfCollision`](crate::SelfCollision),
-    /// validated): a method that can keeps the cloth off itself inside its
+    /// validated) and the other cloths' vertices it collides with: a method
+    /// that can keeps the cloth off itself and them inside its
     /// step (the `stiff` method, in every substep) and says so in
     /// [`StepReport::self_contacts`](super::StepReport::self_contacts); for
     /// the others the plugin resolves it after the step. `None` from
     /// [`Method::step`].
-    pub self_collision: Option<crate::collision::SelfCollision>,
+    pub self_collision: Option<crate::collision::self_contact::SelfCollisionInput<'a>>,
 }
 
 /// A character cloth's skinned pose and per-vertex constraints, as a

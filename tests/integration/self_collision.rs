@@ -154,7 +154,8 @@ fn sheet_on_sheet(self_collision: bool) -> usize {
         worst = worst.max(now);
     }
     for e in [lower, upper] {
-        assert!(stats(&app, e).is_running());
+        let s = stats(&app, e);
+        assert!(s.is_running(), "self-collision {self_collision}: {s:?}");
     }
     worst
 }

@@ -50,7 +50,8 @@ fn run_self_colliding(
             spheres: &[],
             contacts,
             skin: None,
-            self_collision,
+            self_collision: self_collision
+                .map(crate::collision::self_contact::SelfCollisionInput::alone),
         };
         method.step_with(input, &mut state, &mut ws).unwrap();
         each(&state);
