@@ -5,7 +5,8 @@ Usage: check_png.py FILE.png [red|blue|redblue]. Standard library only: decodes
 8-bit RGB/RGBA PNGs, then checks that the image is not blank (many distinct
 colours) and that enough pixels have the cloth's checker colour: red for
 the lab (the default), blue for the flag (whose capsule is red), red or
-blue for the cape example (its cape and skirt).
+blue for the cape example (its cape and skirt) and the drape example (its
+two sheets).
 """
 import struct
 import sys

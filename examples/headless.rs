@@ -2,7 +2,7 @@
 //! and prints one summary line.
 //!
 //! ```text
-//! cargo run --release --example headless -- [--scene lab|assignment|cape] [--method M] \
+//! cargo run --release --example headless -- [--scene lab|assignment|cape|drape] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--material cotton|E,RHO] \
 //!     [--rho 0.995] [--refinement 16] [--sphere] \
@@ -38,6 +38,12 @@
 //!   `skirt_max_stretch` the skirt's), and adds `teleports=` and `body_penetrations=` (garment
 //!   vertices found inside a body capsule after a step, counted over the
 //!   run). A retried step counts as a failure.
+//! - `drape`: two 1.2 m sheets of cotton (`--n`², default 32², `stiff` by
+//!   default) dropped onto a ball on the ground, the second a second after
+//!   the first and turned, both with `SelfCollision` (`--no-self-collision`
+//!   drops it); the line is the first sheet's, and adds `penetrations=` (mesh
+//!   edges through a triangle of either sheet, counted after every step and
+//!   summed over the run: the exact check) and `worst_step_penetrations=`.
 //!
 //! `--cloths N` spawns `N` copies of the cloth side by side, stepped in
 //! parallel across the compute pool; the summary then reports the median
@@ -58,6 +64,9 @@
 mod character;
 #[path = "cli/mod.rs"]
 mod cli;
+// The drape scene, shared with `examples/drape.rs`.
+#[path = "drape/mod.rs"]
+mod drape;
 
 use std::process::ExitCode;
 use std::time::Duration;
@@ -69,13 +78,14 @@ use cli::{CliError, Long, Parser, Short, value};
 
 const USAGE: &str = "usage: headless [OPTIONS]
 
-  --scene lab|assignment|cape   the scene (default lab)
+  --scene lab|assignment|cape|drape   the scene (default lab)
   --method NAME            a preset (default chebyshev, the lab's; stiff in the cape
-                           scene, a game's default): jacobi, chebyshev,
+                           and drape scenes, a game's default): jacobi, chebyshev,
                            chebyshev-auto, pbd, symplectic, linear-cg, linear-direct, pd,
                            pd-anderson, newton, exact, stiff
   --n N                    the lab cloth's side in vertices (default 21); in the cape
-                           scene, the cape's columns (default 20; 50: 4,000 vertices)
+                           scene, the cape's columns (default 20; 50: 4,000 vertices);
+                           in the drape scene, the sheets' side (default 32)
   --rows R --cols C        the assignment's grid (default 30 x 30)
   --cloths N               copies side by side (default 1)
   --steps S                fixed steps to run (default 300)
@@ -91,6 +101,7 @@ const USAGE: &str = "usage: headless [OPTIONS]
   --rho RHO                Chebyshev's fixed spectral radius (default: the preset's)
   --refinement R           stiff's most substeps x near a collider (default 16)
   --sphere                 add the scene's sphere (default: none)
+  --no-self-collision      the drape scene's sheets without SelfCollision
   --penalty C              the assignment sphere's penalty stiffness (default 10)
   --exact-k                the linearly implicit methods' exact spring blocks
   --global auto|direct|mg|mgN   projective dynamics' global solve (default auto)
@@ -106,6 +117,7 @@ enum Scene {
     Lab,
     Assignment,
     Cape,
+    Drape,
 }
 
 #[derive(Debug, Clone)]
@@ -129,6 +141,8 @@ struct Options {
     /// game's, `stiff`).
     method_given: bool,
     sphere: bool,
+    /// The drape scene without its sheets' self-collision.
+    no_self_collision: bool,
     penalty: f32,
     exact_k: bool,
     global: Option<GlobalSolve>,
@@ -158,6 +172,7 @@ impl Default for Options {
             refinement: None,
             method_given: false,
             sphere: false,
+            no_self_collision: false,
             penalty: 10.0,
             exact_k: false,
             global: None,
@@ -177,9 +192,10 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                     "lab" => Scene::Lab,
                     "assignment" => Scene::Assignment,
                     "cape" => Scene::Cape,
+                    "drape" => Scene::Drape,
                     _ => {
                         return Err(format!(
-                            "unknown scene '{scene}' (known: lab, assignment, cape)"
+                            "unknown scene '{scene}' (known: lab, assignment, cape, drape)"
                         )
                         .into());
                     }
@@ -208,6 +224,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             Long("rho") => o.rho = Some(value(&mut parser, "--rho")?),
             Long("refinement") => o.refinement = Some(value(&mut parser, "--refinement")?),
             Long("sphere") => o.sphere = true,
+            Long("no-self-collision") => o.no_self_collision = true,
             Long("penalty") => o.penalty = value(&mut parser, "--penalty")?,
             Long("exact-k") => o.exact_k = true,
             Long("global") => {
@@ -221,7 +238,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             _ => return Err(arg.unexpected().into()),
         }
     }
-    if o.scene == Scene::Cape && !o.method_given {
+    if matches!(o.scene, Scene::Cape | Scene::Drape) && !o.method_given {
         o.method = AnyMethod::default();
     }
     if o.iterations == Some(0) {
@@ -239,6 +256,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
                     Scene::Lab => LAB_DT,
                     Scene::Assignment => ASSIGNMENT_DT,
                     Scene::Cape => character::DT,
+                    Scene::Drape => drape::DT,
                 });
                 AnyMethod::Xpbd(x.with_substeps(k, dt))
             }
@@ -321,7 +339,9 @@ fn scene(o: &Options) -> Result<(ClothBuilder, ClothParams, f64), String> {
                 .with_total_mass(o.mass.unwrap_or(441.0));
             (b, ClothParams::LAB, LAB_DT)
         }
-        Scene::Cape => return Err("the cape scene builds its own cloths".into()),
+        Scene::Cape | Scene::Drape => {
+            return Err("the cape and drape scenes build their own cloths".into());
+        }
         Scene::Assignment => {
             let mut b = ClothBuilder::assignment(o.rows, o.cols);
             if let Some(total) = o.mass {
@@ -373,6 +393,9 @@ fn run(o: &Options) -> Result<(), String> {
     if o.scene == Scene::Cape {
         return run_cape(o);
     }
+    if o.scene == Scene::Drape {
+        return run_drape(o);
+    }
     let (builder, params, dt) = scene(o)?;
     let model = builder.build().map_err(|e| e.to_string())?;
     let mut app = App::new();
@@ -421,7 +444,7 @@ fn run(o: &Options) -> Result<(), String> {
                     Transform::from_xyz(0.0, -4.0, 4.0),
                 ));
             }
-            Scene::Cape => {}
+            Scene::Cape | Scene::Drape => {}
             Scene::Assignment => {
                 app.world_mut().spawn((
                     SphereCollider::penalty(0.1, o.penalty),
@@ -494,6 +517,50 @@ fn run(o: &Options) -> Result<(), String> {
     match &stats.status {
         ClothStatus::Running => Ok(()),
         status => Err(format!("the cloth did not finish running: {status:?}")),
+    }
+}
+
+/// The drape scene: two sheets of `--n`² cotton (default 32) dropped onto a
+/// ball, folding onto themselves and each other; prints the first sheet's
+/// line and `penetrations=` (mesh edges through a triangle of either
+/// sheet, summed over every step: the exact check).
+fn run_drape(o: &Options) -> Result<(), String> {
+    let n = o.n.unwrap_or(32);
+    if !(2..=256).contains(&n) {
+        return Err("--n (the sheets' side) must be between 2 and 256".into());
+    }
+    let settings = drape::DrapeSettings {
+        method: o.method,
+        n,
+        self_collision: !o.no_self_collision,
+    };
+    let run = drape::run_headless(settings, o.steps);
+    let Some((vertices, stats, median)) = run.sheets.first() else {
+        return Err("the drape scene has no sheet".into());
+    };
+    let p = &run.penetrations;
+    let finite = run.sheets.iter().all(|(_, s, _)| s.energy.is_finite());
+    let running = run.sheets.iter().all(|(_, s, _)| s.is_running());
+    println!(
+        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={:?} penetrations={} worst_step_penetrations={}",
+        stats.method,
+        run.sheets.len(),
+        stats.steps,
+        median.as_secs_f64() * 1e6,
+        run.sheets
+            .iter()
+            .map(|(_, s, _)| s.retried_steps)
+            .sum::<u32>(),
+        p.max_stretch,
+        stats.self_contacts,
+        stats.status,
+        p.total,
+        p.worst,
+    );
+    if finite && running {
+        Ok(())
+    } else {
+        Err("a sheet stopped".into())
     }
 }
 
