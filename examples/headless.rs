@@ -550,7 +550,7 @@ fn run_drape(o: &Options) -> Result<(), String> {
         run.sheets
             .iter()
             .map(|(_, s, _)| s.retried_steps)
-            .sum::<u32>(),
+            .sum::<u64>(),
         p.max_stretch,
         stats.self_contacts,
         stats.status,

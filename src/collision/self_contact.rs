@@ -180,18 +180,19 @@ fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
     (d + t * dd).length()
 }
 
-/// A vertex of another cloth, as this cloth's step sees it: where it is at
-/// the step's start and its velocity (it moves in a straight line through
-/// the step), its inverse mass (0: pinned), half its cloth's thickness and
-/// its cloth's friction. Cloths with a [`SelfCollision`] each see the
-/// others' vertices so and take their share of each push (by inverse
-/// mass), so that two cloths keep each other apart.
+/// A vertex of another cloth, as this cloth's step sees it: where it was
+/// at the step's start (it stays there through the step), its inverse mass
+/// (0: pinned), half its cloth's thickness and its cloth's friction.
+/// Cloths with a [`SelfCollision`] each see the others' vertices so and
+/// take their share of each push (by inverse mass), so that two cloths
+/// keep each other apart. (Moving them along their velocity through the
+/// step was tried: it ignores that the other cloth is stopped too, and a
+/// sheet landing on another squeezed the lower one against the ball under
+/// it, stretching it 43 %.)
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct OtherVertex {
     /// Position at the step's start.
     pub position: Vec3A,
-    /// Velocity over the step.
-    pub velocity: Vec3A,
     /// Inverse mass (0 for a pinned vertex).
     pub weight: f32,
     /// Half its cloth's thickness.
@@ -251,7 +252,7 @@ impl SelfContacts {
         xs.extend_from_slice(&x[..n]);
         vs.extend_from_slice(&v[..n]);
         xs.extend(others.iter().map(|o| o.position));
-        vs.extend(others.iter().map(|o| o.velocity));
+        vs.extend(others.iter().map(|_| Vec3A::ZERO));
         let half = 0.5 * thickness;
         self.find_where(
             &xs,
@@ -377,24 +378,18 @@ impl SelfContacts {
     /// One Gauss–Seidel pass over the step's pairs of `model`: each pair
     /// closer than its least distance is pushed apart by inverse mass, with
     /// Coulomb friction on the pair's relative motion since `start` (the
-    /// substep's start). The other cloths' vertices are where they are at
-    /// `times[1]` seconds into the step (at `times[0]` for `start`), and do
-    /// not move: each cloth takes its own share of the push. Returns the
-    /// pairs that were touching.
+    /// substep's start). The other cloths' vertices do not move: each cloth
+    /// takes its own share of the push. Returns the pairs that were
+    /// touching.
     pub fn resolve(
         &self,
         model: &ClothModel,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
-        times: [f32; 2],
     ) -> u32 {
         let pinned = model.pinned();
         let masses = model.masses();
         let own = self.own;
-        let other = |i: usize, t: f32| {
-            let o = &self.others[i - own];
-            o.position + o.velocity * t
-        };
         let weight = |i: usize| {
             if i >= own {
                 self.others[i - own].weight
@@ -416,7 +411,8 @@ impl SelfContacts {
                     None => continue,
                 }
             } else {
-                (other(b, times[1]), other(b, times[0]))
+                let o = self.others[b - own].position;
+                (o, o)
             };
             let d = xb - xa;
             let d2 = d.length_squared();
@@ -467,8 +463,8 @@ impl SelfContacts {
 pub const AFTER_STEP_PASSES: u32 = 4;
 
 impl SelfContacts {
-    /// Self-collision after a step from `before` to `state` (and the other
-    /// cloths' vertices, where their velocities take them over the step):
+    /// Self-collision after a step from `before` to `state` (and against the
+    /// other cloths' vertices where they were before it):
     /// the pairs found from the step's start and its motion, pushed apart in
     /// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
     /// moved. Returns the pairs touching in the last pass.
@@ -496,12 +492,7 @@ impl SelfContacts {
         let solved: Vec<Vec3A> = state.positions[..n].to_vec();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
-            touching = self.resolve(
-                model,
-                &mut state.positions[..n],
-                |i| before.positions[i],
-                [0.0, dt],
-            );
+            touching = self.resolve(model, &mut state.positions[..n], |i| before.positions[i]);
             if touching == 0 {
                 break;
             }

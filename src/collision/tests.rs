@@ -345,7 +345,7 @@ mod self_collision {
         );
         assert!(contacts.pair_count() > 0);
         let start = x.clone();
-        let touching = contacts.resolve(&model, &mut x, |i| start[i], [0.0; 2]);
+        let touching = contacts.resolve(&model, &mut x, |i| start[i]);
         assert_eq!(touching, 1);
         assert!((x[a].distance(x[b]) - sc.thickness).abs() < 1e-5);
         // Equal masses share the push along y.
@@ -362,7 +362,7 @@ mod self_collision {
             SelfCollisionInput::alone(sc),
             0.0,
         );
-        contacts.resolve(&model, &mut x, |i| start[i], [0.0; 2]);
+        contacts.resolve(&model, &mut x, |i| start[i]);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
     }

@@ -1,8 +1,8 @@
 //! Cloths against each other (issue N, item 2): before the step, the
 //! vertices of every running cloth with a valid [`SelfCollision`] are
 //! gathered into one list ([`ClothLayerVertices`]); each such cloth's step
-//! then sees the others' vertices moving in straight lines through the
-//! step, and keeps its own off them by its share of each push
+//! then sees the others' vertices where they were at the step's start, and
+//! keeps its own off them by its share of each push
 //! ([`OtherVertex`]): inside `stiff`'s substeps, after the step for the
 //! other methods.
 
@@ -59,8 +59,7 @@ pub(crate) fn gather_layers(
         let model = cloth.model();
         let start = layers.vertices.len();
         let state = &cloth.state;
-        for (i, (&position, &velocity)) in state.positions.iter().zip(&state.velocities).enumerate()
-        {
+        for (i, &position) in state.positions.iter().enumerate() {
             let weight = if model.pinned()[i] {
                 0.0
             } else {
@@ -68,7 +67,6 @@ pub(crate) fn gather_layers(
             };
             layers.vertices.push(OtherVertex {
                 position,
-                velocity,
                 weight,
                 half_thickness: 0.5 * sc.thickness,
                 friction: sc.friction,

@@ -454,9 +454,7 @@ impl Method for XpbdSolver {
             }
             sweep(params.simd, springs, x);
             if self_collision.is_some() {
-                let t = params.dt as f32 / substeps as f32;
-                let times = [t * (substep - 1) as f32, t * substep as f32];
-                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0], times);
+                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0]);
             }
             contacts_held = pass(
                 x,
