@@ -64,6 +64,7 @@ impl Plugin for AvianCollisionPlugin {
                 project_on_avian
                     .in_set(ClothSystems::Collide)
                     .after(project_after_shapes)
+                    .after(crate::ecs::collide_cloths)
                     .run_if(any_with_component::<Collider>.and_then(any_with_component::<Cloth>)),
             ),
         );

@@ -168,6 +168,7 @@ impl Plugin for SphereCollisionPlugin {
                     gather_spheres.in_set(ClothSystems::SyncIn),
                     project_cloths
                         .in_set(ClothSystems::Collide)
+                        .after(super::collide_cloths)
                         .run_if(any_with_component::<Cloth>),
                 )
                     .run_if(spheres_present),
@@ -428,6 +429,7 @@ impl Plugin for ShapeCollisionPlugin {
                     project_cloths_on_shapes
                         .in_set(ClothSystems::Collide)
                         .after(project_cloths)
+                        .after(super::collide_cloths)
                         .run_if(any_with_component::<Cloth>),
                 )
                     .run_if(shapes_present),

@@ -116,6 +116,9 @@ impl Plugin for ClothCorePlugin {
                     super::layers::gather_layers
                         .in_set(ClothSystems::Forces)
                         .run_if(any_with_component::<crate::collision::SelfCollision>),
+                    super::collide_cloths
+                        .in_set(ClothSystems::Collide)
+                        .run_if(any_with_component::<crate::collision::SelfCollision>),
                 )
                     .run_if(any_with_component::<Cloth>),
             )

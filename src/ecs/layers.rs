@@ -4,7 +4,9 @@
 //! then sees the others' vertices where they were at the step's start, and
 //! keeps its own off them by its share of each push
 //! ([`OtherVertex`]): inside `stiff`'s substeps, after the step for the
-//! other methods.
+//! other methods. After every cloth's step, one pass over all of them
+//! ([`ClothLayers`]) pushes apart what the steps could not see: each moved
+//! while the others stood still in its view.
 
 use core::ops::Range;
 
@@ -12,7 +14,7 @@ use bevy::prelude::*;
 
 use super::{Cloth, ClothStats};
 use crate::collision::SelfCollision;
-use crate::collision::self_contact::OtherVertex;
+use crate::collision::self_contact::{ClothLayers, OtherVertex};
 
 /// The vertices of the cloths with a [`SelfCollision`], gathered before the
 /// step, cloth by cloth in entity order.
@@ -74,5 +76,80 @@ pub(crate) fn gather_layers(
         }
         let end = layers.vertices.len();
         layers.cloths.push((e, start..end));
+    }
+}
+
+/// This step's cloths in [`ClothLayers`], in entity order.
+#[derive(Default)]
+pub(crate) struct Added(Vec<Entity>);
+
+/// After the steps, in [`ClothSystems::Collide`](super::ClothSystems::Collide)
+/// before the colliders' projection: the cloths gathered before the step
+/// pushed apart where they came within their thickness of each other. A
+/// vertex moved counts as one of its cloth's contacts, its velocity changes
+/// by that move over the step, and the guard measures the cloth again.
+pub(crate) fn collide_cloths(
+    time: Res<Time>,
+    gathered: Res<ClothLayerVertices>,
+    mut layers: Local<ClothLayers>,
+    mut added: Local<Added>,
+    mut cloths: Query<(&mut Cloth, &SelfCollision, &mut ClothStats)>,
+) {
+    let dt = time.delta_secs();
+    if dt <= 0.0 || gathered.cloths.len() < 2 {
+        return;
+    }
+    layers.clear();
+    added.0.clear();
+    for &(e, _) in &gathered.cloths {
+        let Ok((cloth, sc, stats)) = cloths.get(e) else {
+            continue;
+        };
+        let model = cloth.model();
+        let n = model.vertex_count();
+        if !stats.is_running()
+            || sc.validate(model).is_err()
+            || cloth.last_good.positions.len() != n
+            || cloth.state.positions.len() != n
+        {
+            continue;
+        }
+        layers.add(
+            model,
+            &cloth.last_good.positions,
+            &cloth.state.positions,
+            dt,
+            *sc,
+        );
+        added.0.push(e);
+    }
+    if added.0.len() < 2 {
+        return;
+    }
+    layers.resolve(dt);
+    let inv_dt = 1.0 / dt;
+    for (index, &e) in added.0.iter().enumerate() {
+        let Ok((mut cloth, _, mut stats)) = cloths.get_mut(e) else {
+            continue;
+        };
+        let cloth = &mut *cloth;
+        let mut moved = 0;
+        for ((x, v), &resolved) in cloth
+            .state
+            .positions
+            .iter_mut()
+            .zip(cloth.state.velocities.iter_mut())
+            .zip(layers.positions(index))
+        {
+            if resolved != *x {
+                *v += (resolved - *x) * inv_dt;
+                *x = resolved;
+                moved += 1;
+            }
+        }
+        if moved > 0 {
+            cloth.measured = None;
+            stats.contacts += moved;
+        }
     }
 }
