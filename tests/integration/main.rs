@@ -15,6 +15,11 @@ mod colliders;
 mod common;
 #[cfg(feature = "picking")]
 mod drag;
+// The drape example's scene (two self-colliding sheets onto a ball, the
+// exact check), shared with `examples/drape.rs` and `headless --scene drape`.
+#[path = "../../examples/drape/mod.rs"]
+#[allow(dead_code)]
+mod drape_scene;
 mod fuzz;
 mod materials;
 mod mesh_order;

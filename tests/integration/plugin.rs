@@ -117,8 +117,8 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     ));
     run_steps(&mut app, 50);
     // Registered: the core and PBD only. Scheduled: materials, attachments
-    // and the self-colliding cloths' gathering (each run only while some
-    // cloth has one), place/pin, guard, the pause bookkeeping,
+    // and the self-colliding cloths' gathering and joint pass (each run only
+    // while some cloth has one), place/pin, guard, the pause bookkeeping,
     // the PBD step, the no-method diagnostic the first method plugin adds
     // and the test's step counter; nothing else.
     let methods: Vec<_> = app.world().resource::<ClothMethods>().names().collect();
@@ -126,15 +126,15 @@ fn an_app_with_only_pbd_runs_no_implicit_or_collision_system() {
     assert!(app.is_plugin_added::<ClothCorePlugin>());
     assert!(!app.is_plugin_added::<ImplicitPlugin>());
     assert!(!app.is_plugin_added::<SphereCollisionPlugin>());
-    assert_eq!(fixed_system_count(&mut app), 9);
+    assert_eq!(fixed_system_count(&mut app), 10);
     let mut full = app_with(ClothPlugins::default());
     run_steps(&mut full, 1);
-    // Core (6) + seven methods + the no-method diagnostic + sphere and shape
+    // Core (7) + seven methods + the no-method diagnostic + sphere and shape
     // gathering and projection + wind + character cloth's skinning, inertia
     // and holding + counter (+ avian gathering and projection with the
     // `avian` feature).
     let avian = usize::from(cfg!(feature = "avian"));
-    assert_eq!(fixed_system_count(&mut full), 23 + 2 * avian);
+    assert_eq!(fixed_system_count(&mut full), 24 + 2 * avian);
     assert_eq!(stats(&app, pbd).steps, 50);
     assert_eq!(stats(&app, pbd).contacts, 0);
     // The implicit cloth has no plugin to step it: it is placed, never moved.
