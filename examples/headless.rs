@@ -541,8 +541,13 @@ fn run_drape(o: &Options) -> Result<(), String> {
     let p = &run.penetrations;
     let finite = run.sheets.iter().all(|(_, s, _)| s.energy.is_finite());
     let running = run.sheets.iter().all(|(_, s, _)| s.is_running());
+    let statuses: Vec<String> = run
+        .sheets
+        .iter()
+        .map(|(_, s, _)| format!("{:?}", s.status))
+        .collect();
     println!(
-        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={:?} penetrations={} worst_step_penetrations={}",
+        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={} penetrations={} worst_step_penetrations={}",
         stats.method,
         run.sheets.len(),
         stats.steps,
@@ -553,7 +558,7 @@ fn run_drape(o: &Options) -> Result<(), String> {
             .sum::<u64>(),
         p.max_stretch,
         stats.self_contacts,
-        stats.status,
+        statuses.join(","),
         p.total,
         p.worst,
     );
