@@ -83,7 +83,7 @@ fn setup(
         })),
         Pickable::IGNORE,
     ));
-    common::orbit_camera(&mut commands, Vec3::new(0.0, 0.3, 0.0), 2.6);
+    common::orbit_camera(&mut commands, Vec3::new(0.0, 0.35, 0.0), 2.2);
 }
 
 /// Gives the ball and each new sheet their meshes: the first sheet red, the

@@ -133,8 +133,12 @@
 //!   gets it after its step, which helps but does not guarantee it (a
 //!   vertex can move further than the thickness in one step). A bad setting
 //!   is a [`SelfCollisionError`], logged once, and the cloth runs without
-//!   it. Cloth against another cloth, and edges against colliders, are not
-//!   built yet.
+//!   it. Two cloths that both have one keep off each other: each step sees
+//!   the other cloths where they were at its start
+//!   ([`collision::self_contact::OtherVertex`]), and a joint pass after all
+//!   steps ([`collision::self_contact::ClothLayers`]) pushes apart what the
+//!   steps could not see. Edges against colliders' edges and faces, and
+//!   swept tests against fast colliders, are not built yet.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)
