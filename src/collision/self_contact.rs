@@ -168,6 +168,17 @@ fn span(lo: [i64; 3], hi: [i64; 3]) -> i64 {
         .fold(1i64, i64::saturating_mul)
 }
 
+/// The keys of the cells (of size `1/inv`) that the box `lo..hi` overlaps,
+/// or `None` if it overlaps more than [`MAX_CELLS`] (or none).
+fn cells_of(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<impl Iterator<Item = u64>> {
+    let (lo, hi) = (cell_of(lo, inv), cell_of(hi, inv));
+    (1..=MAX_CELLS).contains(&span(lo, hi)).then(|| {
+        (lo[0]..=hi[0]).flat_map(move |cx| {
+            (lo[1]..=hi[1]).flat_map(move |cy| (lo[2]..=hi[2]).map(move |cz| key([cx, cy, cz])))
+        })
+    })
+}
+
 /// The least distance between two points moving in straight lines over
 /// `t ∈ [0, 1]`: `d` apart at the start, their difference moving by `dd`.
 fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
@@ -313,21 +324,9 @@ impl SelfContacts {
                 self.skipped += 1;
                 continue;
             }
-            let (lo, hi) = (
-                cell_of(x[i].min(end) - m, inv),
-                cell_of(x[i].max(end) + m, inv),
-            );
-            let span = span(lo, hi);
-            if !(1..=MAX_CELLS).contains(&span) {
-                self.skipped += 1;
-                continue;
-            }
-            for cx in lo[0]..=hi[0] {
-                for cy in lo[1]..=hi[1] {
-                    for cz in lo[2]..=hi[2] {
-                        self.cells.push((key([cx, cy, cz]), i as u32));
-                    }
-                }
+            match cells_of(x[i].min(end) - m, x[i].max(end) + m, inv) {
+                Some(keys) => self.cells.extend(keys.map(|k| (k, i as u32))),
+                None => self.skipped += 1,
             }
         }
         self.cells.sort_unstable();
@@ -718,17 +717,8 @@ fn count_through(
     check.cells.clear();
     for (i, t) in triangles.iter().enumerate() {
         let [a, b, c] = corners(t);
-        let (lo, hi) = (cell_of(a.min(b).min(c), inv), cell_of(a.max(b).max(c), inv));
-        let span = span(lo, hi);
-        if !(1..=MAX_CELLS).contains(&span) {
-            continue;
-        }
-        for cx in lo[0]..=hi[0] {
-            for cy in lo[1]..=hi[1] {
-                for cz in lo[2]..=hi[2] {
-                    check.cells.push((key([cx, cy, cz]), i as u32));
-                }
-            }
+        if let Some(keys) = cells_of(a.min(b).min(c), a.max(b).max(c), inv) {
+            check.cells.extend(keys.map(|k| (k, i as u32)));
         }
     }
     check.cells.sort_unstable();
@@ -743,38 +733,29 @@ fn count_through(
     check.edges.dedup();
     let mut count = 0;
     for &(u, w) in &check.edges {
-        {
-            let (p, q) = (xe[u as usize], xe[w as usize]);
-            let (lo, hi) = (cell_of(p.min(q), inv), cell_of(p.max(q), inv));
-            let span = span(lo, hi);
-            if !(1..=MAX_CELLS).contains(&span) {
+        let (p, q) = (xe[u as usize], xe[w as usize]);
+        let Some(keys) = cells_of(p.min(q), p.max(q), inv) else {
+            continue;
+        };
+        check.candidates.clear();
+        for k in keys {
+            let from = check.cells.partition_point(|&(c, _)| c < k);
+            check.candidates.extend(
+                check.cells[from..]
+                    .iter()
+                    .take_while(|&&(c, _)| c == k)
+                    .map(|&(_, t)| t),
+            );
+        }
+        check.candidates.sort_unstable();
+        check.candidates.dedup();
+        for &other in &check.candidates {
+            let tri = triangles[other as usize];
+            if same && (tri.contains(&u) || tri.contains(&w)) {
                 continue;
             }
-            check.candidates.clear();
-            for cx in lo[0]..=hi[0] {
-                for cy in lo[1]..=hi[1] {
-                    for cz in lo[2]..=hi[2] {
-                        let k = key([cx, cy, cz]);
-                        let from = check.cells.partition_point(|&(c, _)| c < k);
-                        check.candidates.extend(
-                            check.cells[from..]
-                                .iter()
-                                .take_while(|&&(c, _)| c == k)
-                                .map(|&(_, t)| t),
-                        );
-                    }
-                }
-            }
-            check.candidates.sort_unstable();
-            check.candidates.dedup();
-            for &other in &check.candidates {
-                let tri = triangles[other as usize];
-                if same && (tri.contains(&u) || tri.contains(&w)) {
-                    continue;
-                }
-                if segment_hits_triangle(p, q, corners(&tri)) {
-                    count += 1;
-                }
+            if segment_hits_triangle(p, q, corners(&tri)) {
+                count += 1;
             }
         }
     }
