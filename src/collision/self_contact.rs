@@ -30,8 +30,23 @@
 //!   substep began. Pinned vertices do not move. The order is the sorted
 //!   pair list: the same result on any thread count.
 //!
+//! A pair that is already closer than its least distance when the step
+//! begins (a cloth that starts interpenetrated, or layers pressed
+//! together) is parted gradually, by at most [`UNTANGLE`] of the thickness
+//! per step, not launched apart in one substep.
+//!
+//! # Cloth against cloth
+//!
+//! Each cloth's step also sees the vertices of the other cloths with a
+//! [`SelfCollision`] ([`OtherVertex`], [`SelfCollisionInput::others`]),
+//! where they were at the step's start, and takes its share of each push;
+//! after all the steps, [`ClothLayers`] pushes apart in one pass what the
+//! steps could not see (every cloth moved while the others stood still in
+//! its view).
+//!
 //! [`count_intersections`] is the exact check: how many mesh edges pass
-//! through a triangle that shares no vertex with them.
+//! through a triangle that shares no vertex with them;
+//! [`count_crossings`] the same between two cloths.
 
 use bevy::math::Vec3A;
 use bevy::prelude::*;
@@ -123,7 +138,17 @@ struct Pair {
     b: u32,
     min: f32,
     friction: f32,
+    /// Their distance at the step's start if that was below `min` (else
+    /// infinite): they are parted gradually (see [`UNTANGLE`]).
+    overlap: f32,
 }
+
+/// How much of its least distance a pair found closer than that at the
+/// step's start may be parted by over one step (gradually through its
+/// substeps): a cloth that starts interpenetrated, or is pressed together,
+/// untangles over a few steps (at a quarter of the thickness per step)
+/// instead of being launched apart in one substep.
+pub const UNTANGLE: f32 = 0.25;
 
 /// The most grid cells one vertex's swept box may cover: a vertex moving
 /// further in one step (a diverging cloth, which the guard will stop) is
@@ -346,11 +371,13 @@ impl SelfContacts {
                     let reach = min + margin(a) - half(a) + margin(b) - half(b);
                     let d = x[b] - x[a];
                     if closest_approach(d, (v[b] - v[a]) * dt) <= reach {
+                        let d0 = d.length();
                         self.pairs.push(Pair {
                             a: a as u32,
                             b: b as u32,
                             min,
                             friction,
+                            overlap: if d0 < min { d0 } else { f32::INFINITY },
                         });
                     }
                 }
@@ -378,18 +405,21 @@ impl SelfContacts {
     /// closer than its least distance is pushed apart by inverse mass, with
     /// Coulomb friction on the pair's relative motion since `start` (the
     /// substep's start). The other cloths' vertices do not move: each cloth
-    /// takes its own share of the push. Returns the pairs that were
-    /// touching.
+    /// takes its own share of the push. `progress` is how far through the
+    /// step the substep ends (1 after the step): a pair that started closer
+    /// than its least distance is parted only that far along
+    /// ([`UNTANGLE`]). Returns the pairs that were touching.
     pub fn resolve(
         &self,
         model: &ClothModel,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
+        progress: f32,
     ) -> u32 {
         let pinned = model.pinned();
         let masses = model.masses();
         let own = self.own;
-        self.resolve_weighted(x, start, |i| {
+        self.resolve_weighted(x, start, progress, |i| {
             if i >= own {
                 self.others[i - own].weight
             } else if pinned[i] {
@@ -406,6 +436,7 @@ impl SelfContacts {
         &self,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
+        progress: f32,
         weight: impl Fn(usize) -> f32,
     ) -> u32 {
         let own = self.own;
@@ -424,9 +455,10 @@ impl SelfContacts {
                 let o = self.others[b - own].position;
                 (o, o)
             };
+            let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
             let d = xb - xa;
             let d2 = d.length_squared();
-            if d2 >= p.min * p.min {
+            if d2 >= min * min {
                 continue;
             }
             let (wa, wb) = (weight(a), weight(b));
@@ -436,7 +468,7 @@ impl SelfContacts {
             }
             let dist = d2.sqrt();
             // Two vertices on the same point: apart along where they came from.
-            let normal = if dist > 1e-6 * p.min {
+            let normal = if dist > 1e-6 * min {
                 d / dist
             } else {
                 match (start_b - start(a)).try_normalize() {
@@ -445,7 +477,7 @@ impl SelfContacts {
                 }
             };
             touching += 1;
-            let depth = p.min - dist;
+            let depth = min - dist;
             let (sa, sb) = (wa / w, wb / w);
             let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
             if p.friction > 0.0 {
@@ -502,7 +534,12 @@ impl SelfContacts {
         let solved: Vec<Vec3A> = state.positions[..n].to_vec();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
-            touching = self.resolve(model, &mut state.positions[..n], |i| before.positions[i]);
+            touching = self.resolve(
+                model,
+                &mut state.positions[..n],
+                |i| before.positions[i],
+                1.0,
+            );
             if touching == 0 {
                 break;
             }
@@ -620,7 +657,7 @@ impl ClothLayers {
         contacts.others.clear();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
-            touching = contacts.resolve_weighted(x, |i| start[i], |i| weight[i]);
+            touching = contacts.resolve_weighted(x, |i| start[i], 1.0, |i| weight[i]);
             if touching == 0 {
                 break;
             }

@@ -325,44 +325,41 @@ mod self_collision {
         assert_eq!(count_intersections(&model, &x, &mut check), 0);
     }
 
+    /// Vertex 60 falls from twice the thickness above vertex 0's place to
+    /// a millimetre above it within one step: the pair found at the step's
+    /// start, resolved at its end.
+    fn fold_onto_vertex_0(model: &ClothModel, contacts: &mut SelfContacts) -> [Vec<Vec3A>; 2] {
+        let sc = SelfCollision::for_model(model);
+        let dt = 1.0 / 60.0;
+        let mut start = ClothState::at_rest(model, &Affine3A::IDENTITY).positions;
+        start[60] = start[0] + Vec3A::Y * (2.0 * sc.thickness);
+        let mut v = vec![Vec3A::ZERO; start.len()];
+        v[60] = -Vec3A::Y * ((2.0 * sc.thickness - 0.001) / dt);
+        contacts.find(model, &start, &v, dt, SelfCollisionInput::alone(sc), 0.0);
+        let mut end = start.clone();
+        end[60] = end[0] + Vec3A::Y * 0.001;
+        [start, end]
+    }
+
     #[test]
     fn two_vertices_too_close_are_pushed_to_the_thickness_and_pins_stay() {
         let model = sheet(11);
         let sc = SelfCollision::for_model(&model);
-        let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
-        // Vertex 60 folded onto vertex 0's place, a millimetre above it.
         let (a, b) = (0usize, 60usize);
-        x[b] = x[a] + Vec3A::Y * 0.001;
-        let v = vec![Vec3A::ZERO; x.len()];
         let mut contacts = SelfContacts::default();
-        contacts.find(
-            &model,
-            &x,
-            &v,
-            1.0 / 60.0,
-            SelfCollisionInput::alone(sc),
-            0.0,
-        );
+        let [start, mut x] = fold_onto_vertex_0(&model, &mut contacts);
         assert!(contacts.pair_count() > 0);
-        let start = x.clone();
-        let touching = contacts.resolve(&model, &mut x, |i| start[i]);
+        let end = x.clone();
+        let touching = contacts.resolve(&model, &mut x, |i| start[i], 1.0);
         assert_eq!(touching, 1);
         assert!((x[a].distance(x[b]) - sc.thickness).abs() < 1e-5);
         // Equal masses share the push along y.
-        assert!((x[a].y + x[b].y - start[a].y - start[b].y).abs() < 1e-6);
+        assert!((x[a].y + x[b].y - end[a].y - end[b].y).abs() < 1e-6);
         // With vertex 0 pinned, only the other moves.
         let mut model = model;
         model.set_pins(vec![0]).unwrap();
-        let mut x = start.clone();
-        contacts.find(
-            &model,
-            &x,
-            &v,
-            1.0 / 60.0,
-            SelfCollisionInput::alone(sc),
-            0.0,
-        );
-        contacts.resolve(&model, &mut x, |i| start[i]);
+        let [start, mut x] = fold_onto_vertex_0(&model, &mut contacts);
+        contacts.resolve(&model, &mut x, |i| start[i], 1.0);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
     }
@@ -448,5 +445,90 @@ mod self_collision {
         println!("chebyshev: {without} without, {with} with, stretch {stretch}");
         assert!(without > 0);
         assert!(with * 4 < without, "{with} with against {without} without");
+    }
+}
+
+mod untangle {
+    use bevy::math::{Affine3A, Vec3, Vec3A};
+
+    use crate::collision::SelfCollision;
+    use crate::collision::self_contact::SelfCollisionInput;
+    use crate::model::{ClothBuilder, ClothMaterial, ClothState};
+    use crate::solver::xpbd::{XpbdSolver, XpbdWorkspace};
+    use crate::solver::{Method, StepInput, StepParams};
+
+    /// Two 1 m layers of 16² cotton in one cloth, built 20 cm apart and
+    /// started a millimetre apart (the upper moved down whole: the springs
+    /// are content), far inside the thickness: stepped with `stiff`
+    /// without gravity, they are parted gently, never launched.
+    #[test]
+    fn a_cloth_that_starts_interpenetrated_is_parted_without_a_launch() {
+        let n = 16u32;
+        let mut positions = Vec::new();
+        let mut indices = Vec::new();
+        for layer in 0..2u32 {
+            let base = layer * n * n;
+            for i in 0..n {
+                for j in 0..n {
+                    let h = 1.0 / (n - 1) as f32;
+                    positions.push(Vec3::new(j as f32 * h, 0.2 * layer as f32, i as f32 * h));
+                }
+            }
+            for i in 0..n - 1 {
+                for j in 0..n - 1 {
+                    let a = base + i * n + j;
+                    indices.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
+                }
+            }
+        }
+        let model = ClothBuilder::from_triangles(positions, indices)
+            .with_material(ClothMaterial::COTTON)
+            .build()
+            .unwrap();
+        let sc = SelfCollision::for_model(&model);
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let nn = (n * n) as usize;
+        for p in &mut state.positions[nn..] {
+            p.y = 0.001;
+        }
+        let params = StepParams {
+            dt: 1.0 / 60.0,
+            stiffness: ClothMaterial::COTTON.spring_stiffness(&model),
+            gravity: Vec3::ZERO,
+            ..StepParams::LAB
+        };
+        let mut ws = XpbdWorkspace::default();
+        let mut fastest = 0.0f32;
+        for _ in 0..60 {
+            let input = StepInput {
+                model: &model,
+                params: &params,
+                spheres: &[],
+                contacts: &[],
+                skin: None,
+                self_collision: Some(SelfCollisionInput::alone(sc)),
+            };
+            XpbdSolver::STIFF
+                .step_with(input, &mut state, &mut ws)
+                .unwrap();
+            let speed = state
+                .velocities
+                .iter()
+                .map(|v| v.length())
+                .fold(0.0, f32::max);
+            fastest = fastest.max(speed);
+        }
+        assert!(state.positions.iter().all(|p| p.is_finite()));
+        // A quarter of the thickness per step at 60 Hz is about 0.5 m/s.
+        assert!(fastest < 1.0, "launched at {fastest} m/s");
+        // The layers have come apart to about the thickness.
+        let gap = (0..nn)
+            .map(|k| state.positions[nn + k].distance(state.positions[k]))
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            gap > 0.8 * sc.thickness,
+            "layers {gap} apart, thickness {}",
+            sc.thickness
+        );
     }
 }

@@ -454,7 +454,8 @@ impl Method for XpbdSolver {
             }
             sweep(params.simd, springs, x);
             if self_collision.is_some() {
-                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0]);
+                let progress = substep as f32 / substeps as f32;
+                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0], progress);
             }
             contacts_held = pass(
                 x,
