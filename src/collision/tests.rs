@@ -449,7 +449,7 @@ mod self_collision {
 }
 
 mod untangle {
-    use bevy::math::{Affine3A, Vec3, Vec3A};
+    use bevy::math::{Affine3A, Vec3};
 
     use crate::collision::SelfCollision;
     use crate::collision::self_contact::SelfCollisionInput;
