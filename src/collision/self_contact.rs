@@ -94,6 +94,16 @@ impl SelfCollision {
     }
 }
 
+/// Vertex `i`'s inverse mass in `model` (0 for a pinned vertex): how much
+/// of a push it takes.
+pub(crate) fn inverse_mass(model: &ClothModel, i: usize) -> f32 {
+    if model.pinned()[i] {
+        0.0
+    } else {
+        1.0 / model.masses()[i]
+    }
+}
+
 /// The shortest triangle edge of `model` at rest (`∞` without triangles).
 fn shortest_edge(model: &ClothModel) -> f32 {
     let rest = model.topology().rest_positions();
@@ -172,6 +182,8 @@ pub struct SelfContacts {
     /// Scratch: the cloth's and the other cloths' positions and velocities.
     all_x: Vec<Vec3A>,
     all_v: Vec<Vec3A>,
+    /// Scratch of [`resolve_after_step`](Self::resolve_after_step).
+    after_step: (Vec<Vec3A>, Vec<Vec3A>),
 }
 
 /// A cell's key: its integer coordinates packed 21 bits each.
@@ -416,16 +428,12 @@ impl SelfContacts {
         start: impl Fn(usize) -> Vec3A,
         progress: f32,
     ) -> u32 {
-        let pinned = model.pinned();
-        let masses = model.masses();
         let own = self.own;
         self.resolve_weighted(x, start, progress, |i| {
             if i >= own {
                 self.others[i - own].weight
-            } else if pinned[i] {
-                0.0
             } else {
-                1.0 / masses[i]
+                inverse_mass(model, i)
             }
         })
     }
@@ -525,13 +533,19 @@ impl SelfContacts {
         let dt = params.dt as f32;
         let inv_dt = 1.0 / dt;
         // The step's motion as a velocity, for the swept boxes.
-        let moved: Vec<Vec3A> = state.positions[..n]
-            .iter()
-            .zip(&before.positions)
-            .map(|(&x, &b)| (x - b) * inv_dt)
-            .collect();
+        // Scratch kept from step to step: the step's motion as a velocity
+        // (for the swept boxes) and where the step left the positions.
+        let (mut moved, mut solved) = core::mem::take(&mut self.after_step);
+        moved.clear();
+        moved.extend(
+            state.positions[..n]
+                .iter()
+                .zip(&before.positions)
+                .map(|(&x, &b)| (x - b) * inv_dt),
+        );
+        solved.clear();
+        solved.extend_from_slice(&state.positions[..n]);
         self.find(model, &before.positions[..n], &moved, dt, sc, 0.0);
-        let solved: Vec<Vec3A> = state.positions[..n].to_vec();
         let mut touching = 0;
         for _ in 0..AFTER_STEP_PASSES {
             touching = self.resolve(
@@ -552,6 +566,7 @@ impl SelfContacts {
         {
             *v += (x - s) * inv_dt;
         }
+        self.after_step = (moved, solved);
         touching
     }
 }
@@ -612,11 +627,7 @@ impl ClothLayers {
             self.start.push(before[i]);
             self.x.push(after[i]);
             self.v.push((after[i] - before[i]) * inv_dt);
-            self.weight.push(if model.pinned()[i] {
-                0.0
-            } else {
-                1.0 / model.masses()[i]
-            });
+            self.weight.push(inverse_mass(model, i));
             self.cloth.push(index as u32);
             self.half.push(0.5 * sc.thickness);
             self.friction.push(sc.friction);

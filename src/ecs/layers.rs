@@ -14,7 +14,7 @@ use bevy::prelude::*;
 
 use super::{Cloth, ClothStats};
 use crate::collision::SelfCollision;
-use crate::collision::self_contact::{ClothLayers, OtherVertex};
+use crate::collision::self_contact::{ClothLayers, OtherVertex, inverse_mass};
 
 /// The vertices of the cloths with a [`SelfCollision`], gathered before the
 /// step, cloth by cloth in entity order.
@@ -62,11 +62,7 @@ pub(crate) fn gather_layers(
         let start = layers.vertices.len();
         let state = &cloth.state;
         for (i, &position) in state.positions.iter().enumerate() {
-            let weight = if model.pinned()[i] {
-                0.0
-            } else {
-                1.0 / model.masses()[i]
-            };
+            let weight = inverse_mass(model, i);
             layers.vertices.push(OtherVertex {
                 position,
                 weight,

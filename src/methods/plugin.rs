@@ -229,6 +229,7 @@ fn step_cloths<M: ClothMethod>(
     )| {
         cloth.claimed = true;
         stats.contacts = 0;
+        stats.self_contacts = 0;
         if method.is_changed() || params.is_changed() {
             cloth.convergence_reported = false;
         }
