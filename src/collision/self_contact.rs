@@ -517,7 +517,7 @@ impl SelfContacts {
     /// other cloths' vertices where they were before it):
     /// the pairs found from the step's start and its motion, pushed apart in
     /// [`AFTER_STEP_PASSES`] passes, and the velocities changed by what that
-    /// moved. Returns the pairs touching in the last pass.
+    /// moved. Returns the pairs the step left too close (the first pass's).
     pub fn resolve_after_step(
         &mut self,
         model: &ClothModel,
@@ -546,15 +546,20 @@ impl SelfContacts {
         solved.clear();
         solved.extend_from_slice(&state.positions[..n]);
         self.find(model, &before.positions[..n], &moved, dt, sc, 0.0);
+        // The pairs the step left too close (the first pass's count; the
+        // later passes settle what it disturbed).
         let mut touching = 0;
-        for _ in 0..AFTER_STEP_PASSES {
-            touching = self.resolve(
+        for pass in 0..AFTER_STEP_PASSES {
+            let now = self.resolve(
                 model,
                 &mut state.positions[..n],
                 |i| before.positions[i],
                 1.0,
             );
-            if touching == 0 {
+            if pass == 0 {
+                touching = now;
+            }
+            if now == 0 {
                 break;
             }
         }
@@ -636,7 +641,7 @@ impl ClothLayers {
     }
 
     /// Finds the pairs across cloths over the step of `dt` and pushes them
-    /// apart; returns the pairs touching in the last pass.
+    /// apart; returns the pairs the steps left too close (the first pass's).
     pub fn resolve(&mut self, dt: f32) -> u32 {
         if self.offsets.len() < 2 {
             return 0;
@@ -667,9 +672,12 @@ impl ClothLayers {
         contacts.own = x.len();
         contacts.others.clear();
         let mut touching = 0;
-        for _ in 0..AFTER_STEP_PASSES {
-            touching = contacts.resolve_weighted(x, |i| start[i], 1.0, |i| weight[i]);
-            if touching == 0 {
+        for pass in 0..AFTER_STEP_PASSES {
+            let now = contacts.resolve_weighted(x, |i| start[i], 1.0, |i| weight[i]);
+            if pass == 0 {
+                touching = now;
+            }
+            if now == 0 {
                 break;
             }
         }
