@@ -205,21 +205,22 @@ fn the_drape_scene_keeps_its_sheets_apart() {
 #[test]
 fn removing_it_clears_the_pair_count() {
     let mut app = app();
-    let model = ClothBuilder::lab_grid(11).build().unwrap();
-    let sc = SelfCollision::for_model(&model);
-    let cloth = app
-        .world_mut()
-        .spawn((Cloth::new(model), ImplicitSolver::chebyshev(32, 0.995), sc))
-        .id();
-    // Vertex 1 moved halfway to vertex 0 (1 m apart at rest, the
-    // thickness 0.9 m): a pair touches.
-    run_steps(&mut app, 1);
-    {
-        let mut c = app.world_mut().get_mut::<Cloth>(cloth).unwrap();
-        let state = c.state_mut();
-        state.positions[1] = state.positions[0].lerp(state.positions[1], 0.5);
-    }
-    run_steps(&mut app, 1);
+    // Two lab cloths 0.3 m apart (the thickness is 0.9 m): pairs touch.
+    let spawn = |app: &mut App, z: f32| {
+        let model = ClothBuilder::lab_grid(11).build().unwrap();
+        let sc = SelfCollision::for_model(&model);
+        app.world_mut()
+            .spawn((
+                Cloth::new(model),
+                ImplicitSolver::chebyshev(32, 0.995),
+                sc,
+                Transform::from_xyz(0.0, 0.0, z),
+            ))
+            .id()
+    };
+    let cloth = spawn(&mut app, 0.0);
+    spawn(&mut app, 0.3);
+    run_steps(&mut app, 3);
     assert!(stats(&app, cloth).self_contacts > 0);
     app.world_mut().entity_mut(cloth).remove::<SelfCollision>();
     run_steps(&mut app, 1);
