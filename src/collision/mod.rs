@@ -20,8 +20,10 @@ use bevy::math::{DVec3, Vec3A};
 use crate::model::{ClothModel, ClothState};
 
 pub mod self_contact;
+pub mod swept;
 
 pub use self_contact::{SelfCollision, SelfCollisionError};
+pub use swept::{Sweep, project_swept};
 
 /// # Penalty
 ///
@@ -479,6 +481,21 @@ pub fn project_contacts<S>(
         }
     }
     count
+}
+
+/// How far to move each of `vertices` along a contact normal so that the
+/// point with barycentric `weights` on them moves out by `depth`: the
+/// position-based share `wₖ·m⁻¹ₖ·depth/Σ wₖ²m⁻¹ₖ` (pinned vertices take
+/// none). `None` if no vertex can move.
+pub(crate) fn inverse_pushes<const N: usize>(
+    model: &ClothModel,
+    vertices: [usize; N],
+    weights: [f32; N],
+    depth: f32,
+) -> Option<[f32; N]> {
+    let inverse = vertices.map(|i| self_contact::inverse_mass(model, i));
+    let sum: f32 = (0..N).map(|k| weights[k] * weights[k] * inverse[k]).sum();
+    (sum > 0.0).then(|| std::array::from_fn(|k| weights[k] * inverse[k] * depth / sum))
 }
 
 /// Coulomb friction after a projection along `normal` with normal impulse

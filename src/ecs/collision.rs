@@ -4,8 +4,9 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
 use super::{Cloth, ClothCorePlugin, ClothParams, ClothSchedule, ClothStats, ClothSystems};
+use crate::collision::swept::sphere_solids;
 use crate::collision::{
-    Capsule, Cuboid, PenaltySphere, Plane, Shape, Sphere, project_shapes, project_spheres,
+    Capsule, Cuboid, PenaltySphere, Plane, Shape, Sphere, Sweep, project_swept,
 };
 use crate::model::{ClothModel, ClothState};
 
@@ -58,6 +59,14 @@ pub struct ClothColliders {
     /// guard's speed bound allows the cloth beyond its own fall (see
     /// [`max_speed`](Self::max_speed)).
     pub speeds: [f32; 3],
+    /// How far each of [`projection`](Self::projection)'s spheres moved
+    /// over the last step (zero for one first seen), parallel to it: the
+    /// projection sweeps the cloth relative to them, so a fast sphere
+    /// cannot pass through ([`project_swept`]).
+    pub projection_motion: Vec<Vec3A>,
+    /// How far each of [`shapes`](Self::shapes) moved over the last step,
+    /// parallel to it, as [`projection_motion`](Self::projection_motion).
+    pub shape_motion: Vec<Vec3A>,
 }
 
 impl ClothColliders {
@@ -81,15 +90,20 @@ pub(crate) struct ColliderMotion {
 }
 
 impl ColliderMotion {
-    /// Notes that `entity` is at `at` this step, `dt` after the last.
-    pub(crate) fn saw(&mut self, entity: Entity, at: Vec3A, dt: f32) {
+    /// Notes that `entity` is at `at` this step, `dt` after the last, and
+    /// returns how far it moved since (zero for one first seen, or a
+    /// non-finite move).
+    pub(crate) fn saw(&mut self, entity: Entity, at: Vec3A, dt: f32) -> Vec3A {
+        let mut moved = Vec3A::ZERO;
         if let Some(&was) = self.last.get(&entity) {
             let speed = (at - was).length() / dt;
             if speed.is_finite() {
                 self.fastest = self.fastest.max(speed);
+                moved = at - was;
             }
         }
         self.now.insert(entity, at);
+        moved
     }
 
     /// The fastest speed noted since the last call; starts the next step.
@@ -119,7 +133,7 @@ pub struct SphereCollider {
     /// How the sphere acts on the cloth.
     pub response: SphereResponse,
     /// Coulomb friction coefficient `μ ≥ 0` of the projection (the lab's
-    /// sphere: 0, frictionless); see [`project_shapes`].
+    /// sphere: 0, frictionless); see [`project_shapes`](crate::collision::project_shapes).
     pub friction: f32,
 }
 
@@ -198,13 +212,14 @@ fn gather_spheres(
     let dt = time.delta_secs();
     let spheres = spheres.bypass_change_detection();
     spheres.projection.clear();
+    spheres.projection_motion.clear();
     spheres.penalty.clear();
     for (entity, collider) in &colliders {
         let Ok(global) = helper.compute_global_transform(entity) else {
             continue;
         };
         let center = global.translation_vec3a();
-        motion.saw(entity, center, dt);
+        let moved = motion.saw(entity, center, dt);
         let radius = collider.radius;
         let valid_radius = radius.is_finite()
             && radius >= 0.0
@@ -218,6 +233,7 @@ fn gather_spheres(
                     radius,
                     friction: collider.friction,
                 });
+                spheres.projection_motion.push(moved);
             }
             SphereResponse::Penalty { stiffness }
                 if valid_radius && stiffness.is_finite() && stiffness >= 0.0 =>
@@ -250,8 +266,13 @@ fn project_cloths(
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
     if !spheres.projection.is_empty() {
+        let solids: Vec<Shape> = sphere_solids(&spheres.projection).collect();
+        let sweep = Sweep {
+            motion: &spheres.projection_motion,
+            edges: false,
+        };
         project_running_cloths(&time, cloths, |model, state, thickness, dt| {
-            project_spheres(model, state, &spheres.projection, thickness, dt)
+            project_swept(model, state, &solids, sweep, thickness, dt)
         });
     }
 }
@@ -284,8 +305,9 @@ pub(crate) fn project_running_cloths(
 /// surface passes through the entity's global translation with the normal
 /// along the entity's local `+Y` (rotate the entity to tilt it); the solid
 /// side is below. Projected after the step with Coulomb friction
-/// ([`project_shapes`]), for every method; counted in
-/// [`ClothStats::contacts`]. Vertices are kept `thickness` plus the cloth's
+/// ([`project_swept`](crate::collision::project_swept), which also sweeps
+/// a moving collider and tests the cloth's edges against boxes and
+/// capsules), for every method; counted in [`ClothStats::contacts`]. Vertices are kept `thickness` plus the cloth's
 /// [`ClothParams::particle_radius`] above the surface.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Debug, PartialEq, Default)]
@@ -475,11 +497,13 @@ pub(crate) fn gather_shapes(
     let dt = time.delta_secs();
     let ClothColliders {
         shapes,
+        shape_motion,
         penalty_shapes,
         speeds,
         ..
     } = gathered.bypass_change_detection();
     shapes.clear();
+    shape_motion.clear();
     penalty_shapes.clear();
     for (entity, plane, capsule, cuboid) in &colliders {
         let Ok(global) = helper.compute_global_transform(entity) else {
@@ -487,7 +511,7 @@ pub(crate) fn gather_shapes(
         };
         let (_, rotation, translation) = global.to_scale_rotation_translation();
         let center = Vec3A::from(translation);
-        motion.saw(entity, center, dt);
+        let moved = motion.saw(entity, center, dt);
         let axes =
             [Vec3::X, Vec3::Y, Vec3::Z].map(|a| Vec3A::from(rotation * a).normalize_or_zero());
         let placed = center.is_finite() && axes.iter().all(|a| *a != Vec3A::ZERO);
@@ -499,7 +523,10 @@ pub(crate) fn gather_shapes(
                 };
                 let valid = non_negative(stiffness.as_slice());
                 match (shape, stiffness) {
-                    (Some(shape), None) if placed && non_negative(values) => shapes.push(shape),
+                    (Some(shape), None) if placed && non_negative(values) => {
+                        shapes.push(shape);
+                        shape_motion.push(moved);
+                    }
                     (Some(shape), Some(c)) if placed && valid && non_negative(values) => {
                         penalty_shapes.push(PenaltySphere::shape(shape, c));
                     }
@@ -569,8 +596,12 @@ pub(crate) fn project_cloths_on_shapes(
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
     if !colliders.shapes.is_empty() {
+        let sweep = Sweep {
+            motion: &colliders.shape_motion,
+            edges: true,
+        };
         project_running_cloths(&time, cloths, |model, state, thickness, dt| {
-            project_shapes(model, state, &colliders.shapes, thickness, dt)
+            project_swept(model, state, &colliders.shapes, sweep, thickness, dt)
         });
     }
 }

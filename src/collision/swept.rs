@@ -1,0 +1,352 @@
+//! Projection that does not tunnel: solids that move, vertices that move
+//! fast, and the cloth's edges against a solid's edges and corners.
+//!
+//! [`project_shapes`](super::project_shapes) pushes a vertex found inside a
+//! solid out the nearest way. That is right for a vertex that sank in a
+//! little, and wrong in two cases a game meets:
+//!
+//! - **Tunnelling.** A vertex that passed the middle of a thin box in one
+//!   step, or a ball thrown through the cloth faster than its radius per
+//!   step, leaves the vertex nearer the far side: the nearest way out
+//!   carries it on, through the solid. [`project_swept`] follows each vertex
+//!   *relative to the solid* over the step, from `x − v·dt` (where its
+//!   velocity says it was) shifted by the solid's own motion, to `x`. Where
+//!   the nearest way out would continue that relative motion (or the vertex
+//!   crossed the solid entirely and is outside again), it is put back out
+//!   on the side where it entered: moved along the surface normal at its
+//!   entry point until it is outside. Otherwise (it sank in, or started
+//!   inside) it goes out the nearest way, exactly as before, so slow
+//!   contact, and the lab's sphere, are unchanged.
+//! - **Edges.** A vertex-only test lets a box's edge or corner cut between
+//!   two vertices: cloth laid over a box has springs passing through it.
+//!   With `edges` set, each surface edge of the cloth (stretch and shear
+//!   springs) is tested after its vertices: the signed distance to a convex
+//!   solid is convex along a segment, so its deepest point is found by a
+//!   golden-section search, and the two ends are pushed out along the
+//!   normal there, in proportion to their share of that point (barycentric
+//!   weights over inverse masses, as position-based dynamics moves a
+//!   point–edge contact). Planes need no edge test (a segment is deepest at
+//!   an end).
+//!
+//! Sweeps follow a solid's translation only (a spinning box or a swinging
+//! capsule sweeps by its centre's motion), and a solid that moved further
+//! than [`TELEPORT`] in one step is taken as teleported: it is not swept.
+
+use bevy::math::Vec3A;
+
+use super::{Capsule, Shape, Sphere, inverse_pushes};
+use crate::model::{ClothModel, ClothState, SpringKind};
+
+/// A solid that moved further than this in one step (metres) was
+/// teleported, not swept through the cloth: its motion is ignored.
+pub const TELEPORT: f32 = 5.0;
+
+/// How [`project_swept`] treats the solids.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sweep<'a> {
+    /// How far each solid moved over the step (parallel to the solids;
+    /// empty for solids that did not move).
+    pub motion: &'a [Vec3A],
+    /// Whether the cloth's edges are tested too (not only its vertices).
+    pub edges: bool,
+}
+
+/// Iterations of the line searches: golden section shrinks its interval by
+/// 0.618 each, so 28 reach 1e-6 of the segment.
+const SEARCH: usize = 28;
+
+impl Shape {
+    /// The signed distance from `x` to the solid's surface (negative
+    /// inside) and the outward unit normal at the nearest surface point
+    /// (its gradient).
+    pub fn signed_distance(&self, x: Vec3A) -> (f32, Vec3A) {
+        match self {
+            Shape::Plane(p) => (p.normal.dot(x - p.point), p.normal),
+            Shape::Capsule(c) => {
+                let axis = c.b - c.a;
+                let len_sq = axis.length_squared();
+                let t = if len_sq > 0.0 {
+                    ((x - c.a).dot(axis) / len_sq).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let d = x - (c.a + t * axis);
+                let distance = d.length();
+                let normal = if distance > 0.0 {
+                    d / distance
+                } else if len_sq > 0.0 {
+                    axis.any_orthonormal_vector()
+                } else {
+                    Vec3A::Y
+                };
+                (distance - c.radius, normal)
+            }
+            Shape::Cuboid(b) => {
+                let d = x - b.center;
+                let local = Vec3A::new(d.dot(b.axes[0]), d.dot(b.axes[1]), d.dot(b.axes[2]));
+                let q = local.abs() - b.half_extents;
+                let sign = Vec3A::select(local.cmplt(Vec3A::ZERO), -Vec3A::ONE, Vec3A::ONE);
+                let to_world = |l: Vec3A| l.x * b.axes[0] + l.y * b.axes[1] + l.z * b.axes[2];
+                let outside = q.max(Vec3A::ZERO);
+                let distance = outside.length();
+                if distance > 0.0 {
+                    (distance, to_world(outside * sign / distance))
+                } else {
+                    // Inside: out through the nearest face.
+                    let k = if q.x >= q.y && q.x >= q.z {
+                        0
+                    } else if q.y >= q.z {
+                        1
+                    } else {
+                        2
+                    };
+                    (q[k], b.axes[k] * sign[k])
+                }
+            }
+        }
+    }
+}
+
+/// The point of segment `a`–`b` deepest in (or nearest to) the convex
+/// `shape`: its parameter `t ∈ [0, 1]` and signed distance. Golden-section
+/// search on the convex signed distance.
+fn deepest_on_segment(shape: &Shape, a: Vec3A, b: Vec3A) -> (f32, f32) {
+    const INV_PHI: f32 = 0.618_034;
+    let f = |t: f32| shape.signed_distance(a + t * (b - a)).0;
+    let (mut lo, mut hi) = (0.0_f32, 1.0_f32);
+    let mut c = hi - INV_PHI * (hi - lo);
+    let mut d = lo + INV_PHI * (hi - lo);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..SEARCH {
+        if fc < fd {
+            hi = d;
+            (d, fd) = (c, fc);
+            c = hi - INV_PHI * (hi - lo);
+            fc = f(c);
+        } else {
+            lo = c;
+            (c, fc) = (d, fd);
+            d = lo + INV_PHI * (hi - lo);
+            fd = f(d);
+        }
+    }
+    let t = 0.5 * (lo + hi);
+    let (fa, fb, ft) = (f(0.0), f(1.0), f(t));
+    if fa <= ft && fa <= fb {
+        (0.0, fa)
+    } else if fb <= ft {
+        (1.0, fb)
+    } else {
+        (t, ft)
+    }
+}
+
+/// The first `t ∈ [lo, hi]` where `f` crosses zero, for `f(lo) > 0 ≥
+/// f(hi)` (bisection).
+fn first_root(f: impl Fn(f32) -> f32, mut lo: f32, mut hi: f32) -> f32 {
+    for _ in 0..SEARCH {
+        let mid = 0.5 * (lo + hi);
+        if f(mid) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Where a vertex now at `x` that came from `from` (both relative to the
+/// solid's current place) must go out of `shape`, if it is inside or passed
+/// through it: the unit direction and how far. `None` if it is outside and
+/// did not pass through.
+fn swept_contact(shape: &Shape, from: Vec3A, x: Vec3A) -> Option<(Vec3A, f32)> {
+    let (fx, nearest) = shape.signed_distance(x);
+    let (f_from, _) = shape.signed_distance(from);
+    let travel = x - from;
+    // Where the segment first enters the solid before `until`, and the
+    // outward normal there.
+    let entry = |until: f32| {
+        let t = first_root(|t| shape.signed_distance(from + t * travel).0, 0.0, until);
+        let at = from + t * travel;
+        (at, shape.signed_distance(at).1.normalize_or_zero())
+    };
+    if fx < 0.0 {
+        // Inside: the nearest way out, unless it carries the vertex on
+        // through the solid it came into from outside.
+        if f_from <= 0.0 || nearest.dot(travel) <= 0.0 {
+            return Some((nearest, -fx));
+        }
+        let (_, normal) = entry(1.0);
+        if normal == Vec3A::ZERO {
+            return Some((nearest, -fx));
+        }
+        // Along the entry normal to the surface: the last zero of the
+        // convex distance along that line (the tangent plane at the entry
+        // is outside the convex solid, so the search is bounded).
+        let g = |s: f32| shape.signed_distance(x + s * normal).0;
+        let mut far = (-fx).max(1e-6);
+        while g(far) < 0.0 && far < 1e6 {
+            far *= 2.0;
+        }
+        return Some((normal, first_root(|s| -g(s), 0.0, far)));
+    }
+    // Outside now: did it pass through in this step? (The distance is
+    // 1-Lipschitz and convex along the segment, so it stays at least
+    // (f_from + fx − length)/2.)
+    if f_from <= 0.0 || f_from + fx >= travel.length() {
+        return None;
+    }
+    let (t, deepest) = deepest_on_segment(shape, from, x);
+    if deepest >= 0.0 {
+        return None;
+    }
+    // Back to the tangent plane where it entered.
+    let (at, normal) = entry(t);
+    let depth = normal.dot(at - x);
+    (normal != Vec3A::ZERO && depth > 0.0).then_some((normal, depth))
+}
+
+/// Projects the cloth out of `solids` (grown by `thickness`) after a step
+/// without tunnelling (see the module docs): each free vertex swept
+/// relative to each solid, then, with [`Sweep::edges`], each surface edge.
+/// The velocity changes by each displacement over `dt`, with Coulomb
+/// friction on vertex contacts as in
+/// [`project_shapes`](super::project_shapes). Returns the contacts made
+/// (vertices and edges). `dt` must be positive.
+pub fn project_swept(
+    model: &ClothModel,
+    state: &mut ClothState,
+    solids: &[Shape],
+    sweep: Sweep,
+    thickness: f32,
+    dt: f32,
+) -> usize {
+    let pinned = model.pinned();
+    let inv_dt = 1.0 / dt;
+    let mut count = 0;
+    for (k, solid) in solids.iter().enumerate() {
+        let shape = solid.grown(thickness);
+        let mut motion = sweep.motion.get(k).copied().unwrap_or(Vec3A::ZERO);
+        if !motion.is_finite() || motion.length() > TELEPORT {
+            motion = Vec3A::ZERO;
+        }
+        let ClothState {
+            positions,
+            velocities,
+        } = &mut *state;
+        for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+            if pinned[i] {
+                continue;
+            }
+            let from = *x - *v * dt + motion;
+            let Some((normal, depth)) = swept_contact(&shape, from, *x) else {
+                continue;
+            };
+            if !(depth.is_finite() && normal.is_finite()) {
+                continue;
+            }
+            *x += depth * normal;
+            *v += depth * inv_dt * normal;
+            count += 1;
+            super::friction(x, v, normal, depth * inv_dt, shape.friction(), dt);
+        }
+        if sweep.edges && !matches!(shape, Shape::Plane(_)) {
+            count += project_edges(model, state, &shape, dt);
+        }
+    }
+    count
+}
+
+/// Pushes each surface edge of the cloth out of `shape` (already grown)
+/// at its deepest point; returns how many were pushed.
+fn project_edges(model: &ClothModel, state: &mut ClothState, shape: &Shape, dt: f32) -> usize {
+    let inv_dt = 1.0 / dt;
+    let mut count = 0;
+    let ClothState {
+        positions,
+        velocities,
+    } = state;
+    for spring in model.topology().springs() {
+        if spring.kind == SpringKind::Bend {
+            continue;
+        }
+        let (i, j) = (spring.a as usize, spring.b as usize);
+        let (a, b) = (positions[i], positions[j]);
+        let (fa, fb) = (shape.signed_distance(a).0, shape.signed_distance(b).0);
+        // The distance is 1-Lipschitz and convex along the edge: it stays
+        // at least (fa + fb − length)/2, so most edges are done here.
+        if fa + fb >= (b - a).length() || fa <= 0.0 || fb <= 0.0 {
+            continue;
+        }
+        let (t, deepest) = deepest_on_segment(shape, a, b);
+        if deepest >= 0.0 || !deepest.is_finite() {
+            continue;
+        }
+        let normal = push_direction(shape, a + t * (b - a));
+        let Some([ra, rb]) = inverse_pushes(model, [i, j], [1.0 - t, t], 1.0) else {
+            continue;
+        };
+        // How far (the deepest point's move) until the whole edge is out:
+        // across a box's edge or corner one face's depth is not enough.
+        let clear =
+            |s: f32| deepest_on_segment(shape, a + ra * s * normal, b + rb * s * normal).1 >= 0.0;
+        let mut far = -deepest;
+        for _ in 0..8 {
+            if clear(far) {
+                break;
+            }
+            far *= 2.0;
+        }
+        if !clear(far) {
+            continue;
+        }
+        let s = first_root(|s| if clear(s) { 0.0 } else { 1.0 }, 0.0, far);
+        positions[i] += ra * s * normal;
+        positions[j] += rb * s * normal;
+        velocities[i] += ra * s * inv_dt * normal;
+        velocities[j] += rb * s * inv_dt * normal;
+        count += 1;
+    }
+    count
+}
+
+/// The direction to push a point inside `shape` out along: the surface
+/// normal, or, inside a box near its edge or corner, the faces' normals
+/// blended by how near each is (within the point's depth again), so that
+/// an edge across a box's edge is pushed off it diagonally.
+fn push_direction(shape: &Shape, x: Vec3A) -> Vec3A {
+    let (distance, normal) = shape.signed_distance(x);
+    let Shape::Cuboid(b) = shape else {
+        return normal;
+    };
+    if distance >= 0.0 {
+        return normal;
+    }
+    let d = x - b.center;
+    let mut blend = Vec3A::ZERO;
+    for k in 0..3 {
+        let local = d.dot(b.axes[k]);
+        let q = local.abs() - b.half_extents[k];
+        let weight = q - 2.0 * distance;
+        if weight > 0.0 {
+            blend += weight * local.signum() * b.axes[k];
+        }
+    }
+    blend.try_normalize().unwrap_or(normal)
+}
+
+/// The lab's and the game's spheres as zero-length capsules, for
+/// [`project_swept`].
+pub fn sphere_solids(spheres: &[Sphere]) -> impl Iterator<Item = Shape> + '_ {
+    spheres.iter().map(|s| {
+        Shape::Capsule(Capsule {
+            a: s.center,
+            b: s.center,
+            radius: s.radius,
+            friction: s.friction,
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,215 @@
+use bevy::math::{Affine3A, Vec3, Vec3A};
+
+use super::*;
+use crate::collision::{Cuboid, Plane, project_shapes};
+use crate::model::ClothBuilder;
+
+/// A 2 m square of `n×n` vertices at height `y`, in the xz plane.
+fn sheet(n: usize, y: f32) -> (ClothModel, ClothState) {
+    let model = ClothBuilder::grid(
+        n,
+        n,
+        Vec3::new(-1.0, y, -1.0),
+        Vec3::new(1.0, y, -1.0),
+        Vec3::new(-1.0, y, 1.0),
+    )
+    .build()
+    .unwrap();
+    let state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    (model, state)
+}
+
+fn slab(half_height: f32) -> Shape {
+    Shape::Cuboid(Cuboid {
+        center: Vec3A::ZERO,
+        axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+        half_extents: Vec3A::new(3.0, half_height, 3.0),
+        friction: 0.0,
+    })
+}
+
+#[test]
+fn signed_distances_agree_with_the_contacts_inside_and_measure_outside() {
+    let shapes = [
+        slab(0.5),
+        Shape::Capsule(Capsule {
+            a: Vec3A::new(-1.0, 0.0, 0.0),
+            b: Vec3A::new(1.0, 0.0, 0.0),
+            radius: 0.5,
+            friction: 0.0,
+        }),
+        Shape::Plane(Plane {
+            point: Vec3A::ZERO,
+            normal: Vec3A::Y,
+            friction: 0.0,
+        }),
+    ];
+    let inside = [Vec3A::new(0.3, -0.2, 0.1), Vec3A::new(0.9, -0.1, 0.3)];
+    for shape in &shapes {
+        for &x in &inside {
+            let (d, n) = shape.signed_distance(x);
+            let (normal, depth) = shape.contact(x, 0.0).expect("inside");
+            assert!(
+                (d + depth).abs() < 1e-5,
+                "{shape:?} at {x}: {d} against {depth}"
+            );
+            assert!((n - normal).length() < 1e-5);
+        }
+    }
+    // Outside a box's corner: the distance to the corner, along it.
+    let (d, n) = slab(0.5).signed_distance(Vec3A::new(4.0, 1.5, 0.0));
+    assert!((d - 2f32.sqrt()).abs() < 1e-5);
+    assert!((n - Vec3A::new(1.0, 1.0, 0.0).normalize()).length() < 1e-5);
+}
+
+#[test]
+fn a_fast_vertex_through_a_thin_box_is_put_back_on_top() {
+    let (model, mut state) = sheet(3, 0.04);
+    let dt = 1.0 / 60.0;
+    // Every vertex fell 7 cm this step, ending 3 cm below a 2 cm slab's
+    // top, past its middle: the nearest way out is the bottom.
+    for (x, v) in state.positions.iter_mut().zip(&mut state.velocities) {
+        *v = Vec3A::new(0.0, -0.07 / dt, 0.0);
+        x.y -= 0.07;
+    }
+    let mut plain = state.clone();
+    project_shapes(&model, &mut plain, &[slab(0.01)], 0.0, dt);
+    assert!(
+        plain.positions.iter().all(|x| x.y < -0.009),
+        "{:?}",
+        plain.positions[0]
+    );
+    let count = project_swept(&model, &mut state, &[slab(0.01)], Sweep::default(), 0.0, dt);
+    assert_eq!(count, 9);
+    for (x, v) in state.positions.iter().zip(&state.velocities) {
+        assert!((x.y - 0.01).abs() < 1e-4, "put at {x}");
+        // From 4 cm above the slab's top 1 cm to it this step.
+        assert!((v.y - (0.01 - 0.04) / dt).abs() < 1e-2, "velocity {v}");
+    }
+    // A vertex that fell through it entirely (ends outside below) too.
+    let (model, mut state) = sheet(2, -0.2);
+    for v in &mut state.velocities {
+        *v = Vec3A::new(0.0, -0.3 / dt, 0.0);
+    }
+    project_swept(&model, &mut state, &[slab(0.01)], Sweep::default(), 0.0, dt);
+    assert!(state.positions.iter().all(|x| (x.y - 0.01).abs() < 1e-4));
+}
+
+#[test]
+fn slow_contact_goes_out_the_nearest_way_as_before() {
+    let (model, mut state) = sheet(5, -0.003);
+    let dt = 1.0 / 60.0;
+    for v in &mut state.velocities {
+        *v = Vec3A::new(0.2, -0.5, 0.0);
+    }
+    let mut plain = state.clone();
+    let shape = [slab(0.0).grown(0.01)];
+    let a = project_shapes(&model, &mut plain, &shape, 0.0, dt);
+    let b = project_swept(&model, &mut state, &shape, Sweep::default(), 0.0, dt);
+    assert_eq!(a, b);
+    for (p, q) in plain.positions.iter().zip(&state.positions) {
+        assert!((*p - *q).length() < 1e-5, "{p} against {q}");
+    }
+}
+
+#[test]
+fn a_ball_thrown_through_the_cloth_pushes_it_ahead_instead_of_passing() {
+    let n = 33;
+    let (model, mut state) = sheet(n, 0.0);
+    let dt = 1.0 / 60.0;
+    let radius = 0.15;
+    // 30 m/s upwards: 0.5 m this step, from 0.3 m below the sheet to
+    // 0.2 m above it, its centre past every vertex it met.
+    let motion = Vec3A::new(0.0, 0.5, 0.0);
+    let ball = Sphere {
+        center: Vec3A::new(0.0, 0.2, 0.0),
+        radius,
+        friction: 0.0,
+    };
+    let solids: Vec<Shape> = sphere_solids(&[ball]).collect();
+    let mut plain = state.clone();
+    project_swept(&model, &mut plain, &solids, Sweep::default(), 0.0, dt);
+    let met = |s: &ClothState| {
+        s.positions
+            .iter()
+            .filter(|x| Vec3A::new(x.x, 0.0, x.z).length() < radius * 0.9)
+            .count()
+    };
+    // Static (not swept): the vertices under it are left behind it.
+    assert!(met(&plain) > 0);
+    let sweep = Sweep {
+        motion: &[motion],
+        edges: false,
+    };
+    let count = project_swept(&model, &mut state, &solids, sweep, 0.0, dt);
+    assert!(count > 0);
+    for (x, v) in state.positions.iter().zip(&state.velocities) {
+        if Vec3A::new(x.x, 0.0, x.z).length() < radius * 0.5 {
+            assert!(x.y >= ball.center.y, "left below the ball at {x}");
+            assert!(v.y > 20.0, "not carried: {v}");
+        }
+        assert!(x.distance(ball.center) >= radius - 1e-4);
+    }
+    // A teleport is not a sweep.
+    let (model, mut state) = sheet(n, 0.0);
+    let far = Sweep {
+        motion: &[Vec3A::new(0.0, 50.0, 0.0)],
+        edges: false,
+    };
+    let mut plain = state.clone();
+    project_swept(&model, &mut state, &solids, far, 0.0, dt);
+    project_swept(&model, &mut plain, &solids, Sweep::default(), 0.0, dt);
+    assert_eq!(state.positions, plain.positions);
+}
+
+#[test]
+fn edges_over_a_box_corner_are_pushed_out() {
+    // One edge from beside the box's left face to above its top: both ends
+    // outside, its middle 5 cm inside, under the box's top-left edge.
+    let model = ClothBuilder::from_triangles(
+        vec![
+            Vec3::new(-0.55, 0.35, 0.0),
+            Vec3::new(-0.35, 0.55, 0.0),
+            Vec3::new(-0.45, 0.7, 1.0),
+        ],
+        vec![0, 1, 2],
+    )
+    .build()
+    .unwrap();
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let cube = Shape::Cuboid(Cuboid {
+        center: Vec3A::ZERO,
+        axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+        half_extents: Vec3A::new(0.5, 0.5, 2.0),
+        friction: 0.0,
+    });
+    let edge = |s: &ClothState| deepest_on_segment(&cube, s.positions[0], s.positions[1]).1;
+    assert!(edge(&state) < -0.04);
+    let mut vertices_only = state.clone();
+    assert_eq!(
+        project_swept(
+            &model,
+            &mut vertices_only,
+            &[cube],
+            Sweep::default(),
+            0.0,
+            0.01
+        ),
+        0
+    );
+    let with_edges = Sweep {
+        motion: &[],
+        edges: true,
+    };
+    assert!(project_swept(&model, &mut state, &[cube], with_edges, 0.0, 0.01) > 0);
+    assert!(edge(&state) > -1e-4, "still {} inside", -edge(&state));
+    // Both ends moved equally (the deepest point is the edge's middle),
+    // diagonally off the box's edge, as far as the edge's line is from it
+    // (0.1/√2): one face's depth would leave it half inside.
+    let moved = state.positions[0] - Vec3A::new(-0.55, 0.35, 0.0);
+    assert!(
+        (moved - Vec3A::new(-0.05, 0.05, 0.0)).length() < 1e-3,
+        "moved {moved}"
+    );
+    assert!((moved - (state.positions[1] - Vec3A::new(-0.35, 0.55, 0.0))).length() < 1e-3);
+}
