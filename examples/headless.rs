@@ -102,6 +102,7 @@ const USAGE: &str = "usage: headless [OPTIONS]
   --refinement R           stiff's most substeps x near a collider (default 16)
   --sphere                 add the scene's sphere (default: none)
   --no-self-collision      the drape scene's sheets without SelfCollision
+  --throw-at S             the drape scene throws a ball through it at S seconds
   --penalty C              the assignment sphere's penalty stiffness (default 10)
   --exact-k                the linearly implicit methods' exact spring blocks
   --global auto|direct|mg|mgN   projective dynamics' global solve (default auto)
@@ -143,6 +144,8 @@ struct Options {
     sphere: bool,
     /// The drape scene without its sheets' self-collision.
     no_self_collision: bool,
+    /// When the drape scene throws its ball (s).
+    throw_at: Option<f32>,
     penalty: f32,
     exact_k: bool,
     global: Option<GlobalSolve>,
@@ -173,6 +176,7 @@ impl Default for Options {
             method_given: false,
             sphere: false,
             no_self_collision: false,
+            throw_at: None,
             penalty: 10.0,
             exact_k: false,
             global: None,
@@ -225,6 +229,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             Long("refinement") => o.refinement = Some(value(&mut parser, "--refinement")?),
             Long("sphere") => o.sphere = true,
             Long("no-self-collision") => o.no_self_collision = true,
+            Long("throw-at") => o.throw_at = Some(value(&mut parser, "--throw-at")?),
             Long("penalty") => o.penalty = value(&mut parser, "--penalty")?,
             Long("exact-k") => o.exact_k = true,
             Long("global") => {
@@ -529,10 +534,14 @@ fn run_drape(o: &Options) -> Result<(), String> {
     if !(2..=256).contains(&n) {
         return Err("--n (the sheets' side) must be between 2 and 256".into());
     }
+    if o.throw_at.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
+        return Err("--throw-at must be a time in seconds, 0 or more".into());
+    }
     let settings = drape::DrapeSettings {
         method: o.method,
         n,
         self_collision: !o.no_self_collision,
+        throw_at: o.throw_at,
     };
     let run = drape::run_headless(settings, o.steps);
     let Some((vertices, stats, median)) = run.sheets.first() else {

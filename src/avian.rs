@@ -19,7 +19,12 @@
 //! inside it as the crate's own colliders do: projected in `stiff`'s
 //! substeps and terms of `pd`'s and `newton`'s objectives, where stiff
 //! cloth keeps its length over them instead of being strained by the
-//! projection after the step.
+//! projection after the step (in `stiff`'s substeps they push the cloth's
+//! edges too, not only its vertices). After the step they are projected as
+//! the crate's shapes are
+//! ([`collision::project_swept`](crate::collision::project_swept)): swept by
+//! their motion, so a fast one does not pass through the cloth; the
+//! closest-point query serves every other shape.
 //!
 //! **One-way**: the cloth does not push rigid bodies (they are projected
 //! against, not given impulses). A collider's pose is its entity's global
@@ -31,7 +36,7 @@ use avian3d::prelude::{Collider, Friction, Sensor};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use crate::collision::{Capsule, Cuboid, Plane, Shape, project_contacts};
+use crate::collision::{Capsule, Cuboid, Plane, Shape, Sweep, project_contacts, project_swept};
 use crate::ecs::{
     ClothCorePlugin, ClothSchedule, ClothSystems, ColliderMotion, gather_shapes,
     project_after_shapes,
@@ -93,6 +98,7 @@ fn gather_avian(
     let dt = time.delta_secs();
     let gathered = gathered.bypass_change_detection();
     gathered.avian.clear();
+    gathered.avian_motion.clear();
     for (entity, collider, friction) in &colliders {
         let Some(Ok((translation, rotation, friction))) = placement(&helper, entity, friction)
         else {
@@ -100,9 +106,10 @@ fn gather_avian(
         };
         // Every avian collider's motion, the ones projected after the step
         // too.
-        motion.saw(entity, Vec3A::from(translation), dt);
+        let moved = motion.saw(entity, Vec3A::from(translation), dt);
         if let Some(shape) = primitive(collider, translation, rotation, friction) {
             gathered.avian.push(shape);
+            gathered.avian_motion.push(moved);
         }
     }
     gathered.speeds[2] = motion.finish();
@@ -187,12 +194,15 @@ fn placement(
     )
 }
 
-/// Projects every running cloth out of every avian collider.
+/// Projects every running cloth out of every avian collider: the ones
+/// that are the crate's shapes ([`ClothColliders::avian`]) swept
+/// ([`project_swept`]), the others by avian's closest-point query.
 fn project_on_avian(
     time: Res<Time>,
     helper: TransformHelper,
     colliders: Query<(Entity, &Collider, Option<&Friction>), Without<Sensor>>,
-    cloths: Query<(&mut Cloth, &ClothParams, &mut crate::ClothStats)>,
+    gathered: Res<ClothColliders>,
+    mut cloths: Query<(&mut Cloth, &ClothParams, &mut crate::ClothStats)>,
     mut placed: Local<Vec<Placed>>,
     mut warned: Local<Vec<Entity>>,
 ) {
@@ -212,6 +222,9 @@ fn project_on_avian(
                 continue;
             }
         };
+        if primitive(collider, translation, rotation, friction).is_some() {
+            continue;
+        }
         placed.push(Placed {
             collider: collider.clone(),
             translation,
@@ -219,11 +232,25 @@ fn project_on_avian(
             friction,
         });
     }
+    if !gathered.avian.is_empty() {
+        crate::ecs::project_running_cloths(
+            &time,
+            cloths.reborrow(),
+            |model, state, start, thickness, dt| {
+                let sweep = Sweep {
+                    motion: &gathered.avian_motion,
+                    start,
+                    edges: false,
+                };
+                project_swept(model, state, &gathered.avian, sweep, thickness, dt)
+            },
+        );
+    }
     if placed.is_empty() {
         return;
     }
     let placed = &*placed;
-    crate::ecs::project_running_cloths(&time, cloths, |model, state, thickness, dt| {
+    crate::ecs::project_running_cloths(&time, cloths, |model, state, _, thickness, dt| {
         project_contacts(model, state, placed, dt, |c, x| {
             let (surface, inside) =
                 c.collider

@@ -2,7 +2,11 @@
 //! `headless --scene drape` (without): a square of cotton dropped onto a
 //! ball on the ground drapes over it and folds onto itself, and a second
 //! sheet, turned, lands on it a second later. Both have a
-//! [`SelfCollision`] (switchable); the scene counts, after every fixed
+//! [`SelfCollision`] (switchable). A ball can be thrown through the drape
+//! at 30 m/s ([`DrapeClock::throw`], or at a set time with
+//! [`DrapeSettings::throw_at`]): half a metre a step, five times its
+//! radius, and the swept projection carries the cloth ahead of it instead
+//! of letting it pass. The scene counts, after every fixed
 //! step, the mesh edges of each sheet through its own triangles and
 //! through the other sheet's (the exact check,
 //! `collision::self_contact::count_intersections` and `count_crossings`).
@@ -22,6 +26,11 @@ pub const BALL: (f32, Vec3) = (0.3, Vec3::new(0.0, 0.3, 0.0));
 /// When the second sheet is dropped (s).
 pub const SECOND_AT: f32 = 1.0;
 
+/// The thrown ball: radius, speed (m/s), where it starts and how long it
+/// flies (s) before it is gone. It flies along `+x`, 0.45 m up and 0.45 m
+/// to the side of the ball's centre, through the cloth hanging there.
+pub const THROW: (f32, f32, Vec3, f32) = (0.1, 30.0, Vec3::new(-2.5, 0.45, 0.45), 0.3);
+
 /// The scene's choices.
 #[derive(Resource, Clone, Debug)]
 pub struct DrapeSettings {
@@ -31,6 +40,8 @@ pub struct DrapeSettings {
     pub n: usize,
     /// Whether the sheets have a [`SelfCollision`].
     pub self_collision: bool,
+    /// Throw a ball ([`THROW`]) at this scene time (s), once.
+    pub throw_at: Option<f32>,
 }
 
 impl Default for DrapeSettings {
@@ -39,6 +50,7 @@ impl Default for DrapeSettings {
             method: AnyMethod::default(),
             n: 32,
             self_collision: true,
+            throw_at: None,
         }
     }
 }
@@ -71,6 +83,18 @@ pub struct DrapeClock {
     pub second: bool,
     /// Set to start the scene again (both sheets back up, counts cleared).
     pub restart: bool,
+    /// Set to throw a ball ([`THROW`]) at the next fixed step.
+    pub throw: bool,
+    /// Balls thrown so far.
+    pub thrown: usize,
+}
+
+/// A ball thrown through the scene: a [`SphereCollider`] moved along `+x`
+/// at [`THROW`]'s speed each fixed step, gone after its flight.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct Thrown {
+    /// Seconds in flight.
+    pub age: f32,
 }
 
 /// Adds the scene: the ground, the ball, the first sheet at once and the
@@ -86,7 +110,9 @@ impl Plugin for DrapeScenePlugin {
             .add_systems(
                 FixedUpdate,
                 (
-                    drop_sheets.in_set(ClothSystems::First),
+                    (drop_sheets, throw_balls)
+                        .chain()
+                        .in_set(ClothSystems::First),
                     count.in_set(ClothSystems::Last),
                 ),
             )
@@ -169,6 +195,38 @@ fn drop_sheets(
     if !clock.second && clock.seconds >= SECOND_AT {
         clock.second = true;
         spawn_sheet(&mut commands, &settings, 1);
+    }
+}
+
+/// Throws a ball when asked (or at [`DrapeSettings::throw_at`]), moves the
+/// balls in flight, and removes them when their flight is over.
+fn throw_balls(
+    mut commands: Commands,
+    time: Res<Time>,
+    settings: Res<DrapeSettings>,
+    mut clock: ResMut<DrapeClock>,
+    mut balls: Query<(Entity, &mut Transform, &mut Thrown)>,
+) {
+    let dt = time.delta_secs();
+    let (radius, speed, start, flight) = THROW;
+    for (entity, mut transform, mut thrown) in &mut balls {
+        thrown.age += dt;
+        transform.translation.x += speed * dt;
+        if thrown.age > flight {
+            commands.entity(entity).despawn();
+        }
+    }
+    let due = settings
+        .throw_at
+        .is_some_and(|at| clock.thrown == 0 && clock.seconds >= at);
+    if std::mem::take(&mut clock.throw) || due {
+        clock.thrown += 1;
+        commands.spawn((
+            SphereCollider::new(radius),
+            Transform::from_translation(start),
+            Thrown::default(),
+            Name::new("thrown ball"),
+        ));
     }
 }
 

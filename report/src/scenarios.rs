@@ -402,6 +402,7 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
                         params: p,
                         spheres: &spheres,
                         contacts: &scenario.contacts,
+                        contact_motion: &[],
                         skin: None,
                         self_collision: None,
                     };

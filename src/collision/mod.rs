@@ -411,6 +411,26 @@ impl Shape {
         }
     }
 
+    /// The same shape moved by `by`.
+    #[must_use]
+    pub fn translated(self, by: Vec3A) -> Self {
+        match self {
+            Shape::Plane(p) => Shape::Plane(Plane {
+                point: p.point + by,
+                ..p
+            }),
+            Shape::Capsule(c) => Shape::Capsule(Capsule {
+                a: c.a + by,
+                b: c.b + by,
+                ..c
+            }),
+            Shape::Cuboid(b) => Shape::Cuboid(Cuboid {
+                center: b.center + by,
+                ..b
+            }),
+        }
+    }
+
     /// The friction coefficient.
     pub fn friction(&self) -> f32 {
         match self {

@@ -9,8 +9,9 @@
 //!   step, or a ball thrown through the cloth faster than its radius per
 //!   step, leaves the vertex nearer the far side: the nearest way out
 //!   carries it on, through the solid. [`project_swept`] follows each vertex
-//!   *relative to the solid* over the step, from `x − v·dt` (where its
-//!   velocity says it was) shifted by the solid's own motion, to `x`. Where
+//!   *relative to the solid* over the step, from where it was at the step's
+//!   start ([`Sweep::start`], or `x − v·dt`, where its velocity says it
+//!   was) shifted by the solid's own motion, to `x`. Where
 //!   the nearest way out would continue that relative motion (or the vertex
 //!   crossed the solid entirely and is outside again), it is put back out
 //!   on the side where it entered: moved along the surface normal at its
@@ -23,10 +24,13 @@
 //!   springs) is tested after its vertices: the signed distance to a convex
 //!   solid is convex along a segment, so its deepest point is found by a
 //!   golden-section search, and the two ends are pushed out along the
-//!   normal there, in proportion to their share of that point (barycentric
-//!   weights over inverse masses, as position-based dynamics moves a
-//!   point–edge contact). Planes need no edge test (a segment is deepest at
-//!   an end).
+//!   normal there (blended between a box's faces near its edges), in
+//!   proportion to their share of that point (barycentric weights over
+//!   inverse masses, as position-based dynamics moves a point–edge
+//!   contact), in a few passes. The push is inelastic: the ends stop moving
+//!   into the solid but are not given the push as a velocity (a taut edge
+//!   over a box's edge is pushed out every step). Planes need no edge test
+//!   (a segment is deepest at an end).
 //!
 //! Sweeps follow a solid's translation only (a spinning box or a swinging
 //! capsule sweeps by its centre's motion), and a solid that moved further
@@ -47,9 +51,18 @@ pub struct Sweep<'a> {
     /// How far each solid moved over the step (parallel to the solids;
     /// empty for solids that did not move).
     pub motion: &'a [Vec3A],
+    /// Where each vertex was at the step's start (empty: `x − v·dt`, where
+    /// its velocity says it was, right for a method whose velocity is the
+    /// step's displacement over `dt`, not for one with substeps).
+    pub start: &'a [Vec3A],
     /// Whether the cloth's edges are tested too (not only its vertices).
     pub edges: bool,
 }
+
+/// A vertex this close inside a solid at the step's start (metres) was
+/// touching it, not inside: it was left on the surface by the last step's
+/// projection, up to rounding, and is still swept.
+const TOUCH: f32 = 1e-4;
 
 /// Iterations of the line searches: golden section shrinks its interval by
 /// 0.618 each, so 28 reach 1e-6 of the segment.
@@ -155,6 +168,21 @@ fn first_root(f: impl Fn(f32) -> f32, mut lo: f32, mut hi: f32) -> f32 {
     hi
 }
 
+/// Whether a path that entered `shape` where its normal is `entry`, went
+/// `deepest` in, and ends where the normal is `end` (the nearest way out
+/// if it ends inside, where it came out if outside) went *through* the
+/// solid rather than round it: into a box and out of (or towards) the
+/// opposite face, or into a capsule or sphere further than a tenth of its
+/// radius. A vertex sliding over a box's edge or along a ball cuts a
+/// corner or a shallow chord in one step; that is not tunnelling.
+fn went_through(shape: &Shape, entry: Vec3A, end: Vec3A, deepest: f32) -> bool {
+    match shape {
+        Shape::Plane(_) => false,
+        Shape::Cuboid(_) => entry.dot(end) < -0.5,
+        Shape::Capsule(c) => deepest < -0.1 * c.radius,
+    }
+}
+
 /// Where a vertex now at `x` that came from `from` (both relative to the
 /// solid's current place) must go out of `shape`, if it is inside or passed
 /// through it: the unit direction and how far. `None` if it is outside and
@@ -171,39 +199,46 @@ fn swept_contact(shape: &Shape, from: Vec3A, x: Vec3A) -> Option<(Vec3A, f32)> {
         (at, shape.signed_distance(at).1.normalize_or_zero())
     };
     if fx < 0.0 {
-        // Inside: the nearest way out, unless it carries the vertex on
-        // through the solid it came into from outside.
-        if f_from <= 0.0 || nearest.dot(travel) <= 0.0 {
+        // Inside: the nearest way out, unless that carries the vertex on
+        // through a solid it came into from outside.
+        if f_from <= -TOUCH || nearest.dot(travel) <= 0.0 {
             return Some((nearest, -fx));
         }
-        let (_, normal) = entry(1.0);
-        if normal == Vec3A::ZERO {
+        let (at, normal) = entry(1.0);
+        let (_, deepest) = deepest_on_segment(shape, from, x);
+        if normal == Vec3A::ZERO || !went_through(shape, normal, nearest, deepest) {
             return Some((nearest, -fx));
         }
-        // Along the entry normal to the surface: the last zero of the
-        // convex distance along that line (the tangent plane at the entry
-        // is outside the convex solid, so the search is bounded).
-        let g = |s: f32| shape.signed_distance(x + s * normal).0;
-        let mut far = (-fx).max(1e-6);
-        while g(far) < 0.0 && far < 1e6 {
-            far *= 2.0;
-        }
-        return Some((normal, first_root(|s| -g(s), 0.0, far)));
+        return back_to(at, x);
     }
     // Outside now: did it pass through in this step? (The distance is
     // 1-Lipschitz and convex along the segment, so it stays at least
     // (f_from + fx − length)/2.)
-    if f_from <= 0.0 || f_from + fx >= travel.length() {
+    if f_from <= -TOUCH || f_from + fx >= travel.length() {
         return None;
     }
     let (t, deepest) = deepest_on_segment(shape, from, x);
     if deepest >= 0.0 {
         return None;
     }
-    // Back to the tangent plane where it entered.
     let (at, normal) = entry(t);
-    let depth = normal.dot(at - x);
-    (normal != Vec3A::ZERO && depth > 0.0).then_some((normal, depth))
+    // Where it came out: the last zero, from the end back to the deepest.
+    let back = x - (from + t * travel);
+    let out = first_root(|s| shape.signed_distance(x - s * back).0, 0.0, 1.0);
+    let exit = shape.signed_distance(x - out * back).1;
+    if normal == Vec3A::ZERO || !went_through(shape, normal, exit, deepest) {
+        return None;
+    }
+    back_to(at, x)
+}
+
+/// The push that puts a vertex at `x` back where it entered the solid, at
+/// `at` (on its surface, relative to where the solid is now): it stays on
+/// the side it came from, where it met the solid, and moves with it.
+fn back_to(at: Vec3A, x: Vec3A) -> Option<(Vec3A, f32)> {
+    let push = at - x;
+    let depth = push.length();
+    (depth > 0.0).then(|| (push / depth, depth))
 }
 
 /// Projects the cloth out of `solids` (grown by `thickness`) after a step
@@ -238,34 +273,71 @@ pub fn project_swept(
             if pinned[i] {
                 continue;
             }
-            let from = *x - *v * dt + motion;
+            let was = sweep.start.get(i).copied().unwrap_or(*x - *v * dt);
+            let from = was + motion;
             let Some((normal, depth)) = swept_contact(&shape, from, *x) else {
                 continue;
             };
             if !(depth.is_finite() && normal.is_finite()) {
                 continue;
             }
+            // A vertex put back where it entered sticks there: no friction
+            // (its push is not along the surface normal).
+            let entered = (normal - shape.signed_distance(*x + depth * normal).1).length() > 1e-3;
             *x += depth * normal;
-            *v += depth * inv_dt * normal;
             count += 1;
-            super::friction(x, v, normal, depth * inv_dt, shape.friction(), dt);
+            if entered {
+                // It moves on with the solid.
+                *v = motion * inv_dt;
+            } else {
+                *v += depth * inv_dt * normal;
+                super::friction(x, v, normal, depth * inv_dt, shape.friction(), dt);
+            }
         }
         if sweep.edges && !matches!(shape, Shape::Plane(_)) {
-            count += project_edges(model, state, &shape, dt);
+            count += project_edges(model, state, &shape);
         }
     }
     count
 }
 
+/// Passes of the edge test: an edge across a box's edge is pushed out in
+/// one where the blended direction is right, and the rest (an edge over a
+/// corner, one pushed back in by its neighbour's push) in the next.
+const EDGE_PASSES: usize = 4;
+
 /// Pushes each surface edge of the cloth out of `shape` (already grown)
-/// at its deepest point; returns how many were pushed.
-fn project_edges(model: &ClothModel, state: &mut ClothState, shape: &Shape, dt: f32) -> usize {
-    let inv_dt = 1.0 / dt;
+/// at its deepest point, in up to [`EDGE_PASSES`] passes; returns how many
+/// pushes were made.
+fn project_edges(model: &ClothModel, state: &mut ClothState, shape: &Shape) -> usize {
     let mut count = 0;
-    let ClothState {
-        positions,
-        velocities,
-    } = state;
+    for _ in 0..EDGE_PASSES {
+        let pushed = edge_pass(
+            model,
+            &mut state.positions,
+            Some(&mut state.velocities),
+            shape,
+        );
+        count += pushed;
+        if pushed == 0 {
+            break;
+        }
+    }
+    count
+}
+
+/// One pass of [`project_edges`] over `positions`: the edges of the cloth
+/// pushed out of `shape` (already grown). With `velocities`, each end stops
+/// moving into the solid; without, the positions alone move (a
+/// position-based method's substep, whose velocities follow its
+/// positions). Returns the edges pushed.
+pub(crate) fn edge_pass(
+    model: &ClothModel,
+    positions: &mut [Vec3A],
+    mut velocities: Option<&mut [Vec3A]>,
+    shape: &Shape,
+) -> usize {
+    let mut count = 0;
     for spring in model.topology().springs() {
         if spring.kind == SpringKind::Bend {
             continue;
@@ -287,24 +359,31 @@ fn project_edges(model: &ClothModel, state: &mut ClothState, shape: &Shape, dt: 
             continue;
         };
         // How far (the deepest point's move) until the whole edge is out:
-        // across a box's edge or corner one face's depth is not enough.
+        // across a box's edge the blended direction needs more than the
+        // depth (√2 of it over a right angle). At most 1.5 times the depth:
+        // where the direction is poor, the next pass does the rest rather
+        // than one push throwing the edge far.
         let clear =
             |s: f32| deepest_on_segment(shape, a + ra * s * normal, b + rb * s * normal).1 >= 0.0;
-        let mut far = -deepest;
-        for _ in 0..8 {
-            if clear(far) {
-                break;
-            }
-            far *= 2.0;
-        }
-        if !clear(far) {
-            continue;
-        }
-        let s = first_root(|s| if clear(s) { 0.0 } else { 1.0 }, 0.0, far);
+        let most = -1.5 * deepest;
+        let s = if clear(most) {
+            first_root(|s| if clear(s) { 0.0 } else { 1.0 }, 0.0, most)
+        } else {
+            most
+        };
         positions[i] += ra * s * normal;
         positions[j] += rb * s * normal;
-        velocities[i] += ra * s * inv_dt * normal;
-        velocities[j] += rb * s * inv_dt * normal;
+        // Inelastic: the ends stop moving into the solid, and are not
+        // given the push as a velocity (a taut edge over a box's edge is
+        // pushed out every step; as a velocity that would pump energy in).
+        if let Some(v) = velocities.as_deref_mut() {
+            for k in [i, j] {
+                let into = v[k].dot(normal);
+                if into < 0.0 {
+                    v[k] -= into * normal;
+                }
+            }
+        }
         count += 1;
     }
     count

@@ -505,6 +505,7 @@ mod untangle {
                 params: &params,
                 spheres: &[],
                 contacts: &[],
+                contact_motion: &[],
                 skin: None,
                 self_collision: Some(SelfCollisionInput::alone(sc)),
             };

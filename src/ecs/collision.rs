@@ -67,6 +67,9 @@ pub struct ClothColliders {
     /// How far each of [`shapes`](Self::shapes) moved over the last step,
     /// parallel to it, as [`projection_motion`](Self::projection_motion).
     pub shape_motion: Vec<Vec3A>,
+    /// How far each of [`avian`](Self::avian)'s colliders moved over the
+    /// last step, parallel to it.
+    pub avian_motion: Vec<Vec3A>,
 }
 
 impl ClothColliders {
@@ -267,23 +270,25 @@ fn project_cloths(
 ) {
     if !spheres.projection.is_empty() {
         let solids: Vec<Shape> = sphere_solids(&spheres.projection).collect();
-        let sweep = Sweep {
-            motion: &spheres.projection_motion,
-            edges: false,
-        };
-        project_running_cloths(&time, cloths, |model, state, thickness, dt| {
+        project_running_cloths(&time, cloths, |model, state, start, thickness, dt| {
+            let sweep = Sweep {
+                motion: &spheres.projection_motion,
+                start,
+                edges: false,
+            };
             project_swept(model, state, &solids, sweep, thickness, dt)
         });
     }
 }
 
-/// Runs `project` (model, state, the cloth's particle radius, `dt`; returns
-/// the contacts) on every running cloth, in parallel, and counts its
-/// contacts in the cloth's stats.
+/// Runs `project` (model, state, where the vertices were at the step's
+/// start, the cloth's particle radius, `dt`; returns the contacts) on every
+/// running cloth, in parallel, and counts its contacts in the cloth's
+/// stats.
 pub(crate) fn project_running_cloths(
     time: &Time,
     mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
-    project: impl Fn(&ClothModel, &mut ClothState, f32, f32) -> usize + Sync,
+    project: impl Fn(&ClothModel, &mut ClothState, &[Vec3A], f32, f32) -> usize + Sync,
 ) {
     let dt = time.delta_secs();
     if dt <= 0.0 {
@@ -296,7 +301,20 @@ pub(crate) fn project_running_cloths(
         let cloth = &mut *cloth;
         // The guard checks the projected state again in `SyncOut`.
         cloth.measured = None;
-        let contacts = project(&cloth.model, &mut cloth.state, params.particle_radius, dt);
+        // The guard's copy of the state before the step.
+        let start = &cloth.last_good.positions;
+        let start = if start.len() == cloth.state.len() {
+            &start[..]
+        } else {
+            &[]
+        };
+        let contacts = project(
+            &cloth.model,
+            &mut cloth.state,
+            start,
+            params.particle_radius,
+            dt,
+        );
         stats.contacts += contacts as u32;
     });
 }
@@ -306,8 +324,9 @@ pub(crate) fn project_running_cloths(
 /// along the entity's local `+Y` (rotate the entity to tilt it); the solid
 /// side is below. Projected after the step with Coulomb friction
 /// ([`project_swept`](crate::collision::project_swept), which also sweeps
-/// a moving collider and tests the cloth's edges against boxes and
-/// capsules), for every method; counted in [`ClothStats::contacts`]. Vertices are kept `thickness` plus the cloth's
+/// a moving collider so that a fast one does not pass through), for every
+/// method; counted in [`ClothStats::contacts`]. `stiff` also projects it in
+/// its substeps, where boxes and capsules push the cloth's edges too. Vertices are kept `thickness` plus the cloth's
 /// [`ClothParams::particle_radius`] above the surface.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Debug, PartialEq, Default)]
@@ -596,11 +615,15 @@ pub(crate) fn project_cloths_on_shapes(
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
     if !colliders.shapes.is_empty() {
-        let sweep = Sweep {
-            motion: &colliders.shape_motion,
-            edges: true,
-        };
-        project_running_cloths(&time, cloths, |model, state, thickness, dt| {
+        project_running_cloths(&time, cloths, |model, state, start, thickness, dt| {
+            let sweep = Sweep {
+                motion: &colliders.shape_motion,
+                start,
+                // The edges are pushed inside `stiff`'s substeps, not here:
+                // after the step, a push on a taut edge over a box's edge
+                // fights the springs every step.
+                edges: false,
+            };
             project_swept(model, state, &colliders.shapes, sweep, thickness, dt)
         });
     }

@@ -61,6 +61,8 @@ pub struct ClothWorkspace<W: Default + Send + Sync + 'static> {
     /// radius, refilled each step for a method that projects them inside
     /// it ([`StepInput::contacts`]).
     contacts: Vec<Shape>,
+    /// How far each of `contacts` moved over the step (parallel to it).
+    contact_motion: Vec<Vec3A>,
     /// Self-collision's pairs, for a method that leaves it to after the step.
     self_contacts: SelfContacts,
 }
@@ -281,8 +283,23 @@ fn step_cloths<M: ClothMethod>(
                 .chain(colliders.avian.iter().copied())
                 .map(|s| s.grown(particle_radius)),
         );
+        ws.contact_motion.clear();
+        ws.contact_motion.extend(
+            [
+                (colliders.projection.len(), &colliders.projection_motion),
+                (colliders.shapes.len(), &colliders.shape_motion),
+                (colliders.avian.len(), &colliders.avian_motion),
+            ]
+            .into_iter()
+            .flat_map(|(n, motion)| (0..n).map(|k| motion.get(k).copied().unwrap_or(Vec3A::ZERO))),
+        );
         cloth.pin_velocities(dt as f32);
-        let (penalty, contacts, solver_ws) = (&ws.penalty, &ws.contacts, &mut ws.solver);
+        let (penalty, contacts, contact_motion, solver_ws) = (
+            &ws.penalty,
+            &ws.contacts,
+            &ws.contact_motion,
+            &mut ws.solver,
+        );
         let model = &cloth.model;
         // A skin that does not fit the cloth is left to `hold_to_skin`,
         // which warns.
@@ -331,6 +348,7 @@ fn step_cloths<M: ClothMethod>(
                     params: p,
                     spheres: penalty,
                     contacts,
+                    contact_motion,
                     skin,
                     self_collision,
                 };

@@ -180,7 +180,10 @@ impl GuardBounds {
     /// `0.5 + load_factor · M·|g|/(k·L)` (see
     /// [`load_factor`](Self::load_factor); `M` the mass of the free
     /// vertices, `k` the stretch springs' stiffness, `L` their mean rest
-    /// length). `None` if neither applies (a cloth without stretch springs,
+    /// length), plus `2·v_collider·dt/L`: twice as far as the fastest
+    /// collider ([`params.collider_speed`](StepParams::collider_speed))
+    /// moved this step, in rest lengths, since it may have pushed a vertex
+    /// that far past its neighbours in this step and the last. `None` if neither applies (a cloth without stretch springs,
     /// or of zero stiffness, has no load bound).
     pub fn stretch_bound(&self, model: &ClothModel, params: &StepParams) -> Option<f32> {
         let load = self.load_factor.and_then(|factor| {
@@ -190,9 +193,17 @@ impl GuardBounds {
             let strain = weight / (k * l);
             (k > 0.0 && l > 0.0 && strain.is_finite()).then_some(0.5 + factor * strain)
         });
+        // A collider that moved `d` this step may have pushed a vertex
+        // that far past its neighbours, and the step before's push on
+        // top: `2d/L` more, where the speed bound likewise allows the
+        // colliders' speed (a ball thrown through the cloth stretches it,
+        // and that is no wreck).
+        let l = model.topology().mean_rest_lengths()[0];
+        let pushed = 2.0 * params.collider_speed * params.dt as f32 / l;
+        let pushed = if pushed.is_finite() { pushed } else { 0.0 };
         match (self.max_stretch, load) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
+            (Some(a), Some(b)) => Some(a.min(b) + pushed),
+            (a, b) => a.or(b).map(|bound| bound + pushed),
         }
     }
 

@@ -39,6 +39,14 @@ pub struct StepInput<'a> {
     /// every substep); the others ignore them and leave them to the
     /// projection after the step. Empty from [`Method::step`].
     pub contacts: &'a [Shape],
+    /// How far each of [`contacts`](Self::contacts) moved over the step
+    /// (parallel to it; empty, or shorter, for solids that did not move): a
+    /// method with substeps moves them through its substeps from where
+    /// they were, so a fast one pushes the cloth along its path instead of
+    /// appearing at its end (the `stiff` method). A solid that moved
+    /// further than [`TELEPORT`](crate::collision::swept::TELEPORT) is
+    /// taken as teleported and held at its end.
+    pub contact_motion: &'a [Vec3A],
     /// A character cloth's skinned pose and constraints
     /// ([`ClothSkin`](crate::ClothSkin)): a method that can holds its
     /// vertices to them inside its step (the `stiff` method, in every
@@ -192,6 +200,7 @@ pub trait Method: Clone + Copy + Debug + PartialEq + Send + Sync + 'static {
             params,
             spheres,
             contacts: &[],
+            contact_motion: &[],
             skin: None,
             self_collision: None,
         };

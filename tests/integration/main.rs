@@ -29,4 +29,5 @@ mod plugin;
 mod save;
 mod scenes;
 mod self_collision;
+mod tunnelling;
 mod wind;

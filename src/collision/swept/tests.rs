@@ -139,7 +139,7 @@ fn a_ball_thrown_through_the_cloth_pushes_it_ahead_instead_of_passing() {
     assert!(met(&plain) > 0);
     let sweep = Sweep {
         motion: &[motion],
-        edges: false,
+        ..Sweep::default()
     };
     let count = project_swept(&model, &mut state, &solids, sweep, 0.0, dt);
     assert!(count > 0);
@@ -154,7 +154,7 @@ fn a_ball_thrown_through_the_cloth_pushes_it_ahead_instead_of_passing() {
     let (model, mut state) = sheet(n, 0.0);
     let far = Sweep {
         motion: &[Vec3A::new(0.0, 50.0, 0.0)],
-        edges: false,
+        ..Sweep::default()
     };
     let mut plain = state.clone();
     project_swept(&model, &mut state, &solids, far, 0.0, dt);
@@ -198,8 +198,8 @@ fn edges_over_a_box_corner_are_pushed_out() {
         0
     );
     let with_edges = Sweep {
-        motion: &[],
         edges: true,
+        ..Sweep::default()
     };
     assert!(project_swept(&model, &mut state, &[cube], with_edges, 0.0, 0.01) > 0);
     assert!(edge(&state) > -1e-4, "still {} inside", -edge(&state));
@@ -212,4 +212,37 @@ fn edges_over_a_box_corner_are_pushed_out() {
         "moved {moved}"
     );
     assert!((moved - (state.positions[1] - Vec3A::new(-0.35, 0.55, 0.0))).length() < 1e-3);
+}
+
+#[test]
+fn a_vertex_sliding_over_a_box_edge_is_not_thrown_back_on_top() {
+    // A vertex that slid off the top of a box over its edge in one step
+    // cut the corner (and ended just inside the side face): it goes out
+    // the nearest way, by the side, not back up to the top.
+    let model = ClothBuilder::from_triangles(
+        vec![
+            Vec3::new(0.495, 0.4, 0.0),
+            Vec3::new(2.0, 2.0, 0.0),
+            Vec3::new(2.0, 2.0, 1.0),
+        ],
+        vec![0, 1, 2],
+    )
+    .build()
+    .unwrap();
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let dt = 0.01;
+    // From 2 cm above the top, 3 cm in from the edge, to 10 cm down the side.
+    state.velocities[0] = (Vec3A::new(0.495, 0.4, 0.0) - Vec3A::new(0.47, 0.52, 0.0)) / dt;
+    let cube = Shape::Cuboid(Cuboid {
+        center: Vec3A::ZERO,
+        axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+        half_extents: Vec3A::splat(0.5),
+        friction: 0.0,
+    });
+    project_swept(&model, &mut state, &[cube], Sweep::default(), 0.0, dt);
+    let x = state.positions[0];
+    assert!(
+        (x - Vec3A::new(0.5, 0.4, 0.0)).length() < 1e-4,
+        "put at {x}"
+    );
 }

@@ -169,6 +169,7 @@ impl Method for ExactSolver {
             contacts,
             skin: _,
             self_collision: _,
+            contact_motion: _,
         } = input;
         let config = self;
         let n = model.vertex_count();

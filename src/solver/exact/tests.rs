@@ -429,6 +429,7 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
                 params: &params,
                 spheres: &[],
                 contacts: &[slope],
+                contact_motion: &[],
                 skin: None,
                 self_collision: None,
             };
@@ -477,6 +478,7 @@ fn a_step_whose_hessian_never_factorises_is_a_typed_solve_failure_and_leaves_the
         params: &params,
         spheres: &[sphere],
         contacts: &[],
+        contact_motion: &[],
         skin: None,
         self_collision: None,
     };

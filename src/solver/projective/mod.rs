@@ -484,6 +484,7 @@ impl Method for ProjectiveSolver {
             contacts,
             skin: _,
             self_collision: _,
+            contact_motion: _,
         } = input;
         // The penalty spheres, and the contacts as penalties.
         let mut penalties = core::mem::take(&mut ws.penalties);

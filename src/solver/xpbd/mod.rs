@@ -60,6 +60,7 @@ use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::collision::self_contact::SelfContacts;
+use crate::collision::swept::edge_pass;
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
@@ -214,6 +215,7 @@ impl Method for XpbdSolver {
             params,
             spheres,
             contacts,
+            contact_motion,
             skin,
             self_collision,
         } = input;
@@ -226,9 +228,17 @@ impl Method for XpbdSolver {
             let mass = model.free_mass() / free as f32;
             let refine = self.refinement(base, params.dt, k[SpringKind::Stretch as usize], mass);
             let near = refine > 1 && {
+                // A solid that moved is near if it was near where it was,
+                // too (it swept the space between).
+                let was = contacts
+                    .iter()
+                    .zip(contact_motion)
+                    .filter(|&(_, m)| *m != Vec3A::ZERO && m.is_finite())
+                    .map(|(s, m)| s.translated(-*m));
                 let solids = contacts
                     .iter()
                     .copied()
+                    .chain(was)
                     .chain(spheres.iter().map(PenaltySphere::as_shape));
                 near_any(
                     &state.positions[..n],
@@ -293,10 +303,27 @@ impl Method for XpbdSolver {
         ws.solids.extend_from_slice(contacts);
         ws.solids
             .extend(spheres.iter().map(PenaltySphere::as_shape));
-        let contacts = &ws.solids[..];
+        // Solids that moved this step move through the substeps, from where
+        // they were to where they are (`ws.solids` holds them at the end;
+        // `ws.moving` where they are in the substep).
+        ws.motion.clear();
+        ws.motion.extend(ws.solids.iter().enumerate().map(|(k, _)| {
+            let m = contact_motion.get(k).copied().unwrap_or(Vec3A::ZERO);
+            if m.is_finite() && m.length() <= crate::collision::swept::TELEPORT {
+                m
+            } else {
+                Vec3A::ZERO
+            }
+        }));
+        let sweeping = ws.motion.iter().any(|m| *m != Vec3A::ZERO);
+        ws.moving.clear();
+        ws.moving.extend_from_slice(&ws.solids);
         ws.bounds.clear();
-        ws.bounds.extend(contacts.iter().map(bound));
-        let solids = (contacts, &ws.bounds[..]);
+        ws.bounds.extend(ws.solids.iter().map(bound));
+        let contacts = &ws.solids[..];
+        // The projection's solids push the cloth's edges too; the penalty
+        // ones (last) its vertices only, as their force would.
+        let projected = ws.solids.len() - spheres.len();
         // Each pass over the vertices ends one substep (contacts, velocity)
         // and begins the next (prediction), so each substep reads them once.
         // Without penalty spheres or solids it is a plain loop (the general
@@ -372,6 +399,7 @@ impl Method for XpbdSolver {
                     v: &mut [Vec3A],
                     prev: &mut [[Vec3A; 2]],
                     (anchors, skin_now): (&[Vec3A], &[Vec3A]),
+                    solids: (&[Shape], &[Bound]),
                     end: bool,
                     begin: bool| {
             let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
@@ -421,7 +449,7 @@ impl Method for XpbdSolver {
             ws.self_contacts
                 .find(model, x, v, params.dt as f32, sc, slack);
         }
-        pass(x, v, prev, (&[], &[]), false, true);
+        pass(x, v, prev, (&[], &[]), (&[], &[]), false, true);
         let springs = ColouredSprings::new(
             &ws.links.ends,
             &ws.links.rest,
@@ -457,14 +485,40 @@ impl Method for XpbdSolver {
                 let progress = substep as f32 / substeps as f32;
                 self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0], progress);
             }
-            contacts_held = pass(
-                x,
-                v,
-                prev,
-                (&ws.anchors, &ws.skin_now),
-                true,
-                substep < substeps,
-            );
+            // Spheres, capsules and boxes push the cloth's edges too, here
+            // where the springs answer in the next sweep (after the step, a
+            // taut edge over a box's edge would be pushed out and pulled
+            // back in every step).
+            if sweeping {
+                let behind = 1.0 - substep as f32 / substeps as f32;
+                for ((now, end), (motion, b)) in ws
+                    .moving
+                    .iter_mut()
+                    .zip(contacts)
+                    .zip(ws.motion.iter().zip(&mut ws.bounds))
+                {
+                    if *motion != Vec3A::ZERO {
+                        *now = end.translated(-behind * *motion);
+                        *b = bound(now);
+                    }
+                }
+            }
+            let mut edges_held = 0;
+            for shape in &ws.moving[..projected] {
+                if !matches!(shape, Shape::Plane(_)) {
+                    edges_held += edge_pass(model, x, None, shape) as u32;
+                }
+            }
+            contacts_held = edges_held
+                + pass(
+                    x,
+                    v,
+                    prev,
+                    (&ws.anchors, &ws.skin_now),
+                    (&ws.moving, &ws.bounds),
+                    true,
+                    substep < substeps,
+                );
         }
         Ok(StepReport {
             iterations: substeps,
@@ -596,8 +650,13 @@ pub struct XpbdWorkspace {
     /// Per vertex, its position at the substep's start and its predicted
     /// position.
     previous: Vec<[Vec3A; 2]>,
-    /// The step's contacts and penalty colliders, projected alike.
+    /// The step's contacts and penalty colliders, projected alike (where
+    /// they are at the step's end).
     solids: Vec<Shape>,
+    /// Each solid's motion over the step (zero for a static one).
+    motion: Vec<Vec3A>,
+    /// The solids where they are in the current substep.
+    moving: Vec<Shape>,
     /// Per solid, its quick test ([`bound`]).
     bounds: Vec<Bound>,
     /// Each vertex's nearest pin and rest distance (taken once per topology

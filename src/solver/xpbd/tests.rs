@@ -49,6 +49,7 @@ fn run_self_colliding(
             params,
             spheres: &[],
             contacts,
+            contact_motion: &[],
             skin: None,
             self_collision: self_collision
                 .map(crate::collision::self_contact::SelfCollisionInput::alone),
@@ -208,12 +209,14 @@ fn contacts_are_projected_inside_every_substep() {
         },
     );
     assert_eq!(inside, 0);
-    // It touches both: some vertex rests on each.
+    // It touches both: some vertex rests on each (within 2 cm: the
+    // sphere pushes the cloth's edges too, and an edge of 0.5 m over a
+    // sphere of 2.7 m holds its ends 1.2 cm off it).
     let touching = |shape: &Shape| {
         state
             .positions
             .iter()
-            .filter(|&&x| shape.contact(x, 1e-2).is_some())
+            .filter(|&&x| shape.contact(x, 2e-2).is_some())
             .count()
     };
     assert!(touching(&sphere) > 0 && touching(&ground) > 0);
@@ -511,6 +514,7 @@ fn pins_move_through_the_substeps_unless_they_were_teleported() {
             params: &params,
             spheres: &[],
             contacts: &[],
+            contact_motion: &[],
             skin: None,
             self_collision: None,
         };
@@ -582,6 +586,7 @@ fn only_steps_near_a_collider_are_refined() {
             params: &params,
             spheres: &[],
             contacts,
+            contact_motion: &[],
             skin: None,
             self_collision: None,
         };
@@ -696,6 +701,7 @@ fn a_cotton_cape_swinging_onto_a_body_keeps_its_length_with_the_refinement() {
                 params: &params,
                 spheres: &[],
                 contacts: &[body],
+                contact_motion: &[],
                 skin: None,
                 self_collision: None,
             };
