@@ -556,7 +556,7 @@ fn run_drape(o: &Options) -> Result<(), String> {
         .map(|(_, s, _)| format!("{:?}", s.status))
         .collect();
     println!(
-        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={} penetrations={} worst_step_penetrations={}",
+        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={} penetrations={} worst_step_penetrations={} ball_touches={} inside_ball={}",
         stats.method,
         run.sheets.len(),
         stats.steps,
@@ -570,6 +570,8 @@ fn run_drape(o: &Options) -> Result<(), String> {
         statuses.join(","),
         p.total,
         p.worst,
+        p.ball_touches,
+        p.inside_ball,
     );
     if finite && running {
         Ok(())

@@ -115,7 +115,8 @@
 //! - [`PlaneCollider`] (a half-space: the ground, a slope, through its
 //!   entity with the normal along its local `+Y`), [`CapsuleCollider`] and
 //!   [`CuboidCollider`] / [`ShapeCollisionPlugin`]: projected after the step
-//!   with Coulomb friction ([`collision::project_shapes`]), or, with
+//!   with Coulomb friction ([`collision::project_shapes`], swept:
+//!   [`collision::project_swept`]), or, with
 //!   [`ContactResponse::Penalty`], a penalty force inside the step like the
 //!   assignment's sphere ([`collision::PenaltySurface::Shape`]); every method.
 //! - The projected solids also reach the method inside its step
@@ -137,8 +138,15 @@
 //!   the other cloths where they were at its start
 //!   ([`collision::self_contact::OtherVertex`]), and a joint pass after all
 //!   steps ([`collision::self_contact::ClothLayers`]) pushes apart what the
-//!   steps could not see. Edges against colliders' edges and faces, and
-//!   swept tests against fast colliders, are not built yet.
+//!   steps could not see.
+//! - **No tunnelling** ([`collision::swept`]): the projection after the step
+//!   follows each vertex relative to its collider's motion over the step,
+//!   from where it was at the step's start; one that went through (a ball
+//!   thrown through the cloth, a vertex falling through a thin box) is put
+//!   back where it entered. `stiff` also moves the colliders through its
+//!   substeps ([`solver::StepInput::contact_motion`]) and lets spheres,
+//!   capsules and boxes push the cloth's edges there, not only its
+//!   vertices, so cloth drapes over a box's edge instead of cutting it.
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)

@@ -337,6 +337,13 @@ pub(crate) fn edge_pass(
     mut velocities: Option<&mut [Vec3A]>,
     shape: &Shape,
 ) -> usize {
+    // A sphere around the solid: an edge whose end is further from its
+    // centre than its radius and the edge's length cannot touch it.
+    let (centre, reach) = match *shape {
+        Shape::Plane(_) => return 0,
+        Shape::Capsule(c) => (0.5 * (c.a + c.b), 0.5 * c.a.distance(c.b) + c.radius),
+        Shape::Cuboid(b) => (b.center, b.half_extents.length()),
+    };
     let mut count = 0;
     for spring in model.topology().springs() {
         if spring.kind == SpringKind::Bend {
@@ -344,10 +351,14 @@ pub(crate) fn edge_pass(
         }
         let (i, j) = (spring.a as usize, spring.b as usize);
         let (a, b) = (positions[i], positions[j]);
+        let length = a.distance(b);
+        if a.distance(centre) > reach + length {
+            continue;
+        }
         let (fa, fb) = (shape.signed_distance(a).0, shape.signed_distance(b).0);
         // The distance is 1-Lipschitz and convex along the edge: it stays
         // at least (fa + fb − length)/2, so most edges are done here.
-        if fa + fb >= (b - a).length() || fa <= 0.0 || fb <= 0.0 {
+        if fa + fb >= length || fa <= 0.0 || fb <= 0.0 {
             continue;
         }
         let (t, deepest) = deepest_on_segment(shape, a, b);
