@@ -124,13 +124,18 @@ impl Shape {
 /// `shape`: its parameter `t ∈ [0, 1]` and signed distance. Golden-section
 /// search on the convex signed distance.
 fn deepest_on_segment(shape: &Shape, a: Vec3A, b: Vec3A) -> (f32, f32) {
+    deepest_within(shape, a, b, SEARCH)
+}
+
+/// [`deepest_on_segment`] in `iterations` golden-section steps.
+fn deepest_within(shape: &Shape, a: Vec3A, b: Vec3A, iterations: usize) -> (f32, f32) {
     const INV_PHI: f32 = 0.618_034;
     let f = |t: f32| shape.signed_distance(a + t * (b - a)).0;
     let (mut lo, mut hi) = (0.0_f32, 1.0_f32);
     let mut c = hi - INV_PHI * (hi - lo);
     let mut d = lo + INV_PHI * (hi - lo);
     let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..SEARCH {
+    for _ in 0..iterations {
         if fc < fd {
             hi = d;
             (d, fd) = (c, fc);
@@ -334,31 +339,85 @@ fn project_edges(model: &ClothModel, state: &mut ClothState, shape: &Shape) -> u
 pub(crate) fn edge_pass(
     model: &ClothModel,
     positions: &mut [Vec3A],
-    mut velocities: Option<&mut [Vec3A]>,
+    velocities: Option<&mut [Vec3A]>,
     shape: &Shape,
 ) -> usize {
-    // A sphere around the solid: an edge whose end is further from its
-    // centre than its radius and the edge's length cannot touch it.
-    let (centre, reach) = match *shape {
-        Shape::Plane(_) => return 0,
+    let springs = model.topology().springs();
+    edge_pass_over(
+        model,
+        positions,
+        velocities,
+        shape,
+        (0..springs.len() as u32).filter(|&k| springs[k as usize].kind != SpringKind::Bend),
+    )
+}
+
+/// The surface edges (stretch and shear springs, by index) that may meet
+/// `shape` while each of their ends moves at most `margin`: the ones that
+/// pass inside it grown by `margin` (or end inside it). A method with
+/// substeps finds them once per step and tests only them in each substep
+/// ([`edge_pass_over`]).
+pub(crate) fn edge_candidates(
+    model: &ClothModel,
+    positions: &[Vec3A],
+    shape: &Shape,
+    margin: f32,
+    out: &mut Vec<u32>,
+) {
+    out.clear();
+    if matches!(shape, Shape::Plane(_)) || !margin.is_finite() {
+        return;
+    }
+    let grown = shape.grown(margin);
+    let (centre, reach) = bounding_sphere(&grown);
+    for (k, spring) in model.topology().springs().iter().enumerate() {
+        let (a, b) = (positions[spring.a as usize], positions[spring.b as usize]);
+        if spring.kind == SpringKind::Bend || a.distance(centre) > reach + a.distance(b) {
+            continue;
+        }
+        if passes_inside(&grown, a, b) || grown.signed_distance(a).0 < 0.0 {
+            out.push(k as u32);
+        }
+    }
+}
+
+/// A sphere around a solid that is not a plane: centre and radius.
+fn bounding_sphere(shape: &Shape) -> (Vec3A, f32) {
+    match *shape {
+        Shape::Plane(p) => (p.point, f32::INFINITY),
         Shape::Capsule(c) => (0.5 * (c.a + c.b), 0.5 * c.a.distance(c.b) + c.radius),
         Shape::Cuboid(b) => (b.center, b.half_extents.length()),
-    };
+    }
+}
+
+/// [`edge_pass`] over the springs `edges` (indices; stretch and shear).
+pub(crate) fn edge_pass_over(
+    model: &ClothModel,
+    positions: &mut [Vec3A],
+    mut velocities: Option<&mut [Vec3A]>,
+    shape: &Shape,
+    edges: impl IntoIterator<Item = u32>,
+) -> usize {
+    if matches!(shape, Shape::Plane(_)) {
+        return 0;
+    }
+    // A sphere around the solid: an edge whose end is further from its
+    // centre than its radius and the edge's length cannot touch it.
+    let (centre, reach) = bounding_sphere(shape);
+    let springs = model.topology().springs();
     let mut count = 0;
-    for spring in model.topology().springs() {
-        if spring.kind == SpringKind::Bend {
-            continue;
-        }
+    for k in edges {
+        let spring = springs[k as usize];
         let (i, j) = (spring.a as usize, spring.b as usize);
         let (a, b) = (positions[i], positions[j]);
-        let length = a.distance(b);
-        if a.distance(centre) > reach + length {
+        if a.distance(centre) > reach + a.distance(b) {
             continue;
         }
-        let (fa, fb) = (shape.signed_distance(a).0, shape.signed_distance(b).0);
-        // The distance is 1-Lipschitz and convex along the edge: it stays
-        // at least (fa + fb − length)/2, so most edges are done here.
-        if fa + fb >= length || fa <= 0.0 || fb <= 0.0 {
+        // Only an edge whose ends are outside and whose middle goes in.
+        if !passes_inside(shape, a, b)
+            || shape.signed_distance(a).0 <= 0.0
+            || shape.signed_distance(b).0 <= 0.0
+        {
             continue;
         }
         let (t, deepest) = deepest_on_segment(shape, a, b);
@@ -374,11 +433,23 @@ pub(crate) fn edge_pass(
         // depth (√2 of it over a right angle). At most 1.5 times the depth:
         // where the direction is poor, the next pass does the rest rather
         // than one push throwing the edge far.
+        // (Coarser searches here: a tenth of a percent of the push is
+        // plenty, and this runs in every substep of `stiff`.)
         let clear =
-            |s: f32| deepest_on_segment(shape, a + ra * s * normal, b + rb * s * normal).1 >= 0.0;
+            |s: f32| deepest_within(shape, a + ra * s * normal, b + rb * s * normal, 22).1 >= 0.0;
         let most = -1.5 * deepest;
         let s = if clear(most) {
-            first_root(|s| if clear(s) { 0.0 } else { 1.0 }, 0.0, most)
+            let mut lo = 0.0;
+            let mut hi = most;
+            for _ in 0..12 {
+                let mid = 0.5 * (lo + hi);
+                if clear(mid) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            hi
         } else {
             most
         };
@@ -398,6 +469,77 @@ pub(crate) fn edge_pass(
         count += 1;
     }
     count
+}
+
+/// Whether segment `a`–`b` passes through the inside of `shape` (a box's
+/// slabs, a capsule's axis nearer than its radius; never a plane, where a
+/// segment is deepest at an end): the exact, cheap test before the search
+/// for its deepest point. An edge lying on a face is not inside.
+fn passes_inside(shape: &Shape, a: Vec3A, b: Vec3A) -> bool {
+    match shape {
+        Shape::Plane(_) => false,
+        Shape::Cuboid(c) => {
+            let local = |x: Vec3A| {
+                let d = x - c.center;
+                Vec3A::new(d.dot(c.axes[0]), d.dot(c.axes[1]), d.dot(c.axes[2]))
+            };
+            let (p, q) = (local(a), local(b));
+            let (mut lo, mut hi) = (0.0_f32, 1.0_f32);
+            for k in 0..3 {
+                let (h, from, d) = (c.half_extents[k], p[k], q[k] - p[k]);
+                if d.abs() < 1e-12 {
+                    if from.abs() >= h {
+                        return false;
+                    }
+                    continue;
+                }
+                let (t1, t2) = ((-h - from) / d, (h - from) / d);
+                lo = lo.max(t1.min(t2));
+                hi = hi.min(t1.max(t2));
+                if lo >= hi {
+                    return false;
+                }
+            }
+            true
+        }
+        Shape::Capsule(c) => segment_distance(a, b, c.a, c.b) < c.radius,
+    }
+}
+
+/// The distance between segments `p0`–`p1` and `q0`–`q1` (the closest
+/// points by clamped parameters, as in Ericson's *Real-Time Collision
+/// Detection*, 5.1.9).
+fn segment_distance(p0: Vec3A, p1: Vec3A, q0: Vec3A, q1: Vec3A) -> f32 {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.length_squared(), d2.length_squared(), d2.dot(r));
+    let (s, t) = if a <= f32::EPSILON && e <= f32::EPSILON {
+        (0.0, 0.0)
+    } else if a <= f32::EPSILON {
+        (0.0, (f / e).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(r);
+        if e <= f32::EPSILON {
+            ((-c / a).clamp(0.0, 1.0), 0.0)
+        } else {
+            let b = d1.dot(d2);
+            let denom = a * e - b * b;
+            let mut s = if denom > 0.0 {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let mut t = (b * s + f) / e;
+            if t < 0.0 {
+                t = 0.0;
+                s = (-c / a).clamp(0.0, 1.0);
+            } else if t > 1.0 {
+                t = 1.0;
+                s = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            (s, t)
+        }
+    };
+    (p0 + s * d1).distance(q0 + t * d2)
 }
 
 /// The direction to push a point inside `shape` out along: the surface
