@@ -267,16 +267,19 @@ fn project_cloths(
     time: Res<Time>,
     spheres: Res<ClothColliders>,
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
+    mut solids: Local<Vec<Shape>>,
 ) {
     if !spheres.projection.is_empty() {
-        let solids: Vec<Shape> = sphere_solids(&spheres.projection).collect();
+        solids.clear();
+        solids.extend(sphere_solids(&spheres.projection));
+        let solids = &*solids;
         project_running_cloths(&time, cloths, |model, state, start, thickness, dt| {
             let sweep = Sweep {
                 motion: &spheres.projection_motion,
                 start,
                 edges: false,
             };
-            project_swept(model, state, &solids, sweep, thickness, dt)
+            project_swept(model, state, solids, sweep, thickness, dt)
         });
     }
 }

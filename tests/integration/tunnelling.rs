@@ -12,8 +12,18 @@ use bevy_cloth::prelude::*;
 
 use crate::common::{app, positions, run_steps, stats};
 
-fn preset(name: &str) -> AnyMethod {
-    PRESETS.iter().find(|p| p.name() == name).unwrap().method
+/// A cotton cloth of `model` with `stiff`, the default method.
+fn spawn_cotton(app: &mut App, model: ClothModel) -> Entity {
+    let entity = app
+        .world_mut()
+        .spawn((
+            Cloth::new(model),
+            ClothMaterial::COTTON,
+            Transform::default(),
+        ))
+        .id();
+    AnyMethod::default().insert(&mut app.world_mut().commands().entity(entity));
+    entity
 }
 
 /// The deepest point of the cloth's surface in `shape`: its signed
@@ -75,15 +85,7 @@ fn drop_on_box(avian: bool) -> (f32, f32, Vec3A, ClothStats) {
     )
     .build()
     .unwrap();
-    let entity = app
-        .world_mut()
-        .spawn((
-            Cloth::new(model),
-            ClothMaterial::COTTON,
-            Transform::default(),
-        ))
-        .id();
-    AnyMethod::default().insert(&mut app.world_mut().commands().entity(entity));
+    let entity = spawn_cotton(&mut app, model);
     let middle = |app: &App| positions(app, entity)[16 * 32 + 16];
     let mut deepest = f32::INFINITY;
     let mut settled = Vec3A::ZERO;
@@ -162,59 +164,49 @@ fn ray_meets(cloth: &Cloth, from: Vec3A, direction: Vec3A) -> bool {
 /// that speed (their guard pauses the sheet): see issue M.
 #[test]
 fn a_ball_at_30_m_per_s_does_not_pass_through_a_64_square_cloth() {
-    {
-        let name = "stiff";
-        let mut app = app();
-        app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
-        let model = ClothBuilder::grid(
-            64,
-            64,
-            Vec3::new(-1.0, 0.0, -1.0),
-            Vec3::new(1.0, 0.0, -1.0),
-            Vec3::new(-1.0, 0.0, 1.0),
-        )
-        .build()
-        .unwrap();
-        let cloth = app
-            .world_mut()
-            .spawn((
-                Cloth::new(model),
-                ClothMaterial::COTTON,
-                Transform::default(),
-            ))
-            .id();
-        preset(name).insert(&mut app.world_mut().commands().entity(cloth));
-        let radius = 0.25;
-        let ball = app
-            .world_mut()
-            .spawn((
-                SphereCollider::new(radius).with_friction(0.5),
-                Transform::from_xyz(0.02, -0.65, 0.03),
-            ))
-            .id();
+    let name = "stiff";
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+    let model = ClothBuilder::grid(
+        64,
+        64,
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, -1.0),
+        Vec3::new(-1.0, 0.0, 1.0),
+    )
+    .build()
+    .unwrap();
+    let cloth = spawn_cotton(&mut app, model);
+    let radius = 0.25;
+    let ball = app
+        .world_mut()
+        .spawn((
+            SphereCollider::new(radius).with_friction(0.5),
+            Transform::from_xyz(0.02, -0.65, 0.03),
+        ))
+        .id();
+    run_steps(&mut app, 1);
+    for step in 0..6 {
+        app.world_mut()
+            .get_mut::<Transform>(ball)
+            .unwrap()
+            .translation
+            .y += 0.5;
         run_steps(&mut app, 1);
-        for step in 0..6 {
-            app.world_mut()
-                .get_mut::<Transform>(ball)
-                .unwrap()
-                .translation
-                .y += 0.5;
-            run_steps(&mut app, 1);
-            let center = Vec3A::from(app.world().get::<Transform>(ball).unwrap().translation);
-            let c = app.world().get::<Cloth>(cloth).unwrap();
-            let s = stats(&app, cloth);
-            assert!(s.is_running(), "{name}, step {step}: {s:?}");
-            if center.y > -0.1 {
-                assert!(
-                    ray_meets(c, center, Vec3A::Y),
-                    "{name}: the ball at {center} passed the cloth at step {step}"
-                );
-            }
-            let inside = positions(&app, cloth)
-                .iter()
-                .filter(|x| x.distance(center) < radius - 1e-3)
-                .count();
-            assert_eq!(inside, 0, "{name}, step {step}: vertices inside the ball");
+        let center = Vec3A::from(app.world().get::<Transform>(ball).unwrap().translation);
+        let c = app.world().get::<Cloth>(cloth).unwrap();
+        let s = stats(&app, cloth);
+        assert!(s.is_running(), "{name}, step {step}: {s:?}");
+        if center.y > -0.1 {
+            assert!(
+                ray_meets(c, center, Vec3A::Y),
+                "{name}: the ball at {center} passed the cloth at step {step}"
+            );
         }
+        let inside = positions(&app, cloth)
+            .iter()
+            .filter(|x| x.distance(center) < radius - 1e-3)
+            .count();
+        assert_eq!(inside, 0, "{name}, step {step}: vertices inside the ball");
     }
 }

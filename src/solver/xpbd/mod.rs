@@ -354,13 +354,12 @@ impl Method for XpbdSolver {
         // The edges each solid may meet this step, found once: within what
         // a vertex can move in the step (its speed, the fall) and the
         // solid's own motion of it.
-        let reach = x[..n]
-            .iter()
-            .zip(&v[..n])
-            .map(|(_, v)| v.length())
-            .fold(0.0_f32, f32::max)
-            * params.dt as f32
-            + gravity.length() * (params.dt * params.dt) as f32;
+        let reach = if projected > 0 {
+            v.iter().map(|v| v.length()).fold(0.0_f32, f32::max) * params.dt as f32
+                + gravity.length() * (params.dt * params.dt) as f32
+        } else {
+            0.0
+        };
         ws.edges.resize_with(projected, Vec::new);
         for ((solid, motion), edges) in ws.solids[..projected]
             .iter()
