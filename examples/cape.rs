@@ -182,10 +182,15 @@ fn character_panel(
                 &mut s.inertia,
                 "inertia: ½ of the velocity, ¼ of the acceleration",
             );
+            ui.checkbox(
+                &mut s.drive,
+                "anim drive: ½ of the way to the skin per second",
+            );
             if s.tethers != settings.tethers
                 || s.max_distance != settings.max_distance
                 || s.backstop != settings.backstop
                 || s.inertia != settings.inertia
+                || s.drive != settings.drive
             {
                 *settings = s;
             }

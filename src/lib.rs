@@ -480,7 +480,8 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use character::{
-    CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
+    ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin, ClothInertia,
+    ClothSkin, SkinConstraints, SkinPose, Skinning,
 };
 pub use collision::{SelfCollision, SelfCollisionError};
 pub use ecs::{
@@ -507,7 +508,8 @@ pub use solver::xpbd::XpbdSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::character::{
-        CharacterClothPlugin, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
+        ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin, ClothInertia,
+        ClothSkin, SkinConstraints, SkinPose, Skinning,
     };
     pub use crate::collision::SelfCollision;
     pub use crate::ecs::{

@@ -61,7 +61,14 @@ pub struct CapeSettings {
     /// The garments feel half of the character's velocity and a quarter of
     /// its acceleration (otherwise all of both).
     pub inertia: bool,
+    /// An anim drive pulling every vertex towards its skinned place
+    /// ([`ANIM_DRIVE`] of the way per second): the garments keep their
+    /// modelled shape.
+    pub drive: bool,
 }
+
+/// The anim drive's share of the way to the skin per second, when on.
+pub const ANIM_DRIVE: f32 = 0.5;
 
 impl Default for CapeSettings {
     fn default() -> Self {
@@ -72,6 +79,7 @@ impl Default for CapeSettings {
             max_distance: true,
             backstop: true,
             inertia: true,
+            drive: false,
         }
     }
 }
@@ -81,25 +89,29 @@ impl Default for CapeSettings {
 pub struct Garment {
     /// Its name.
     pub name: &'static str,
-    /// Max distance per vertex.
-    max_distance: Vec<f32>,
-    /// Backstop distance per vertex, and the spheres' radius.
-    backstop: (Vec<f32>, f32),
+    /// Max distance and backstop distance per cloth vertex, as painted on
+    /// its mesh ([`SkinConstraints::with_painted`]).
+    painted: SkinConstraints,
+    /// The backstop spheres' radius.
+    backstop_radius: f32,
 }
 
 impl Garment {
     /// The constraints `settings` switch on.
     fn constraints(&self, settings: &CapeSettings) -> SkinConstraints {
-        let n = self.max_distance.len();
-        let mut c = SkinConstraints::free(n);
+        let painted = &self.painted;
+        let mut c = SkinConstraints::free(painted.max_distance.len());
         if settings.max_distance {
-            c = c.with_max_distance(|i| self.max_distance[i]);
+            c = c.with_max_distance(|i| painted.max_distance[i]);
         }
         if settings.backstop {
-            c = c.with_backstop(self.backstop.1, |i| self.backstop.0[i]);
+            c = c.with_backstop(self.backstop_radius, |i| painted.backstop_distance[i]);
         }
         if settings.tethers {
             c = c.with_tethers(TETHER_SCALE);
+        }
+        if settings.drive {
+            c = c.with_drive(ANIM_DRIVE);
         }
         c
     }
@@ -290,7 +302,7 @@ fn spawn_scene(mut commands: Commands, settings: Res<CapeSettings>, running: Res
         inverse_bindposes: Handle::default(),
         joints,
     };
-    for (mesh, garment) in [cape(settings.cape_cols), skirt()] {
+    for (mesh, (name, backstop_radius)) in [cape(settings.cape_cols), skirt()] {
         let model = match ClothBuilder::from_mesh(&mesh).and_then(|b| {
             b.with_material(ClothMaterial::COTTON.with_density(0.4))
                 .with_pins(garment_pins(&mesh))
@@ -298,7 +310,19 @@ fn spawn_scene(mut commands: Commands, settings: Res<CapeSettings>, running: Res
         }) {
             Ok(model) => model,
             Err(error) => {
-                error!("the {} is not a cloth: {error}", garment.name);
+                error!("the {name} is not a cloth: {error}");
+                continue;
+            }
+        };
+        let garment = match SkinConstraints::free(model.vertex_count()).with_painted(&mesh, &model)
+        {
+            Ok(painted) => Garment {
+                name,
+                painted,
+                backstop_radius,
+            },
+            Err(error) => {
+                error!("the {name}'s painted weights: {error}");
                 continue;
             }
         };
@@ -382,8 +406,10 @@ fn grid_mesh(
 /// The cape: from the shoulders (1.45 m, 0.6 m wide) to 0.35 m above the
 /// ground (0.9 m wide), 2 cm behind the back; skinned to the spine at the
 /// top, the pelvis below. Max distance grows to 0.6 m at the hem; the
-/// backstop is 2 cm behind the skin (spheres of 3 m: nearly a plane).
-fn cape(cols: usize) -> (Mesh, Garment) {
+/// backstop is 2 cm behind the skin (spheres of 3 m: nearly a plane): both
+/// painted on the mesh as vertex attributes. Returns the mesh, the name and
+/// the backstop spheres' radius.
+fn cape(cols: usize) -> (Mesh, (&'static str, f32)) {
     let cols = cols.max(2);
     let rows = (cols * 8).div_ceil(5).max(2);
     let (top, bottom) = (1.45, 0.35);
@@ -404,12 +430,12 @@ fn cape(cols: usize) -> (Mesh, Garment) {
         .attribute(Mesh::ATTRIBUTE_POSITION)
         .and_then(|a| a.as_float3())
         .unwrap_or_default();
-    let garment = Garment {
-        name: "cape",
-        max_distance: positions.iter().map(|p| 0.6 * depth(p)).collect(),
-        backstop: (vec![0.02; positions.len()], 3.0),
-    };
-    (mesh, garment)
+    let max_distance: Vec<f32> = positions.iter().map(|p| 0.6 * depth(p)).collect();
+    let backstop = vec![0.02f32; positions.len()];
+    let mesh = mesh
+        .with_inserted_attribute(ATTRIBUTE_CLOTH_MAX_DISTANCE, max_distance)
+        .with_inserted_attribute(ATTRIBUTE_CLOTH_BACKSTOP, backstop);
+    (mesh, ("cape", 3.0))
 }
 
 /// The skirt: a flared cone round the hips from the waist (0.98 m, radius
@@ -418,7 +444,7 @@ fn cape(cols: usize) -> (Mesh, Garment) {
 /// hem. No backstop: a backstop sphere stands for a body part no wider than
 /// itself, and round a tube a vertex sliding sideways would be pushed out of
 /// it; the hips' and legs' capsules keep the skirt off the body.
-fn skirt() -> (Mesh, Garment) {
+fn skirt() -> (Mesh, (&'static str, f32)) {
     let (around, rows) = (40, 12);
     let (top, bottom) = (0.98, 0.62);
     let mesh = grid_mesh(around, rows, true, |c, r| {
@@ -435,14 +461,13 @@ fn skirt() -> (Mesh, Garment) {
         )
     });
     let count = around * rows;
-    let garment = Garment {
-        name: "skirt",
-        max_distance: (0..count)
-            .map(|i| 0.25 * (i / around) as f32 / (rows - 1) as f32)
-            .collect(),
-        backstop: (vec![f32::INFINITY; count], 0.15),
-    };
-    (mesh, garment)
+    let max_distance: Vec<f32> = (0..count)
+        .map(|i| 0.25 * (i / around) as f32 / (rows - 1) as f32)
+        .collect();
+    (
+        mesh.with_inserted_attribute(ATTRIBUTE_CLOTH_MAX_DISTANCE, max_distance),
+        ("skirt", 0.15),
+    )
 }
 
 /// Runs the script one fixed step: round the circle, a jump, a sharp turn

@@ -27,6 +27,7 @@
 
 pub mod accuracy;
 pub mod chart;
+pub mod contact;
 pub mod long_run;
 pub mod perf;
 pub mod scenarios;

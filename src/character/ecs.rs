@@ -4,7 +4,7 @@
 use bevy::ecs::schedule::common_conditions::any_with_component;
 use bevy::math::{Affine3A, Mat3A, Mat4, Vec3A};
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
-use bevy::mesh::{Mesh, VertexAttributeValues};
+use bevy::mesh::{Mesh, MeshVertexAttribute, VertexAttributeValues, VertexFormat};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
@@ -92,6 +92,66 @@ pub struct Skinning {
     /// Per cloth vertex: its bind-pose position and normal.
     pub bind: Vec<(Vec3A, Vec3A)>,
     joint_matrices: Vec<Affine3A>,
+}
+
+/// A mesh's painted max distance per vertex (`Float32`, metres; see
+/// [`SkinConstraints::with_painted`]). A glTF file's own attribute (a name
+/// starting with `_`, as a DCC tool exports painted weights) maps onto it
+/// with Bevy's `GltfPlugin::add_custom_vertex_attribute("_CLOTH_MAX_DISTANCE",
+/// ATTRIBUTE_CLOTH_MAX_DISTANCE)`.
+pub const ATTRIBUTE_CLOTH_MAX_DISTANCE: MeshVertexAttribute =
+    MeshVertexAttribute::new("Cloth_MaxDistance", 0x0C10_7E5D_0001, VertexFormat::Float32);
+
+/// A mesh's painted backstop distance per vertex (`Float32`, metres; see
+/// [`SkinConstraints::with_painted`]).
+pub const ATTRIBUTE_CLOTH_BACKSTOP: MeshVertexAttribute =
+    MeshVertexAttribute::new("Cloth_Backstop", 0x0C10_7E5D_0002, VertexFormat::Float32);
+
+impl SkinConstraints {
+    /// These constraints with each cloth vertex's max distance and backstop
+    /// distance painted on `mesh`, the mesh `model` was built from
+    /// ([`ClothBuilder::from_mesh`](crate::model::ClothBuilder::from_mesh),
+    /// welded or not): the [`ATTRIBUTE_CLOTH_MAX_DISTANCE`] and
+    /// [`ATTRIBUTE_CLOTH_BACKSTOP`] attributes, where present (an absent
+    /// one leaves its list as it is). Each cloth vertex takes the value of
+    /// the first mesh vertex that became it, as [`Skinning::from_mesh`]
+    /// takes its joints. A value that is NaN or negative is
+    /// [`SkinError::Distance`]; an attribute of another format or length,
+    /// or one that does not cover every cloth vertex, [`SkinError::Mesh`].
+    pub fn with_painted(mut self, mesh: &Mesh, model: &ClothModel) -> Result<Self, SkinError> {
+        let n = model.vertex_count();
+        for (attribute, list) in [
+            (ATTRIBUTE_CLOTH_MAX_DISTANCE, &mut self.max_distance),
+            (ATTRIBUTE_CLOTH_BACKSTOP, &mut self.backstop_distance),
+        ] {
+            let Some(values) = mesh.try_attribute_option(attribute).ok().flatten() else {
+                continue;
+            };
+            let VertexAttributeValues::Float32(values) = values else {
+                return Err(SkinError::Mesh);
+            };
+            if values.iter().any(|d| d.is_nan() || *d < 0.0) {
+                return Err(SkinError::Distance);
+            }
+            let mut painted = vec![None; n];
+            for (j, &d) in values.iter().enumerate() {
+                let c = match model.welded_from() {
+                    Some(map) => map.get(j).map(|&c| c as usize),
+                    None => Some(j),
+                };
+                if let Some(slot) = c.and_then(|c| painted.get_mut(c))
+                    && slot.is_none()
+                {
+                    *slot = Some(d);
+                }
+            }
+            if painted.contains(&None) || list.len() != n {
+                return Err(SkinError::Mesh);
+            }
+            *list = painted.into_iter().flatten().collect();
+        }
+        Ok(self)
+    }
 }
 
 impl Skinning {

@@ -302,7 +302,10 @@ pub fn apply_skin(
 
 mod ecs;
 pub mod inertia;
-pub use ecs::{CharacterClothPlugin, ClothSkin, Skinning};
+pub use ecs::{
+    ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin, ClothSkin,
+    Skinning,
+};
 pub use inertia::ClothInertia;
 
 #[cfg(test)]

@@ -605,3 +605,69 @@ fn skinned_positions_and_normals_match_bevys_vertex_shader() {
     }
     assert_eq!(checked, positions.len());
 }
+
+#[test]
+fn painted_max_distance_and_backstop_come_from_the_mesh_welded_or_not() {
+    use bevy::mesh::{Mesh, MeshBuilder, Meshable, VertexAttributeValues};
+    use bevy::prelude::{Plane3d, Vec2};
+
+    use super::{ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, SkinError};
+
+    let mut mesh = Plane3d::new(Vec3::Y, Vec2::splat(1.0))
+        .mesh()
+        .subdivisions(3)
+        .build();
+    let Some(VertexAttributeValues::Float32x3(positions)) =
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION).cloned()
+    else {
+        panic!("a plane has positions");
+    };
+    // Painted by height along z: 0 at the top edge (follows the skin),
+    // growing down the cape; the backstop 2 cm everywhere.
+    let painted: Vec<f32> = positions.iter().map(|p| 0.1 * (p[2] + 1.0)).collect();
+    mesh.insert_attribute(ATTRIBUTE_CLOTH_MAX_DISTANCE, painted.clone());
+    mesh.insert_attribute(ATTRIBUTE_CLOTH_BACKSTOP, vec![0.02f32; positions.len()]);
+    for weld in [false, true] {
+        let model = ClothBuilder::from_mesh(&mesh)
+            .unwrap()
+            .with_welding(weld)
+            .build()
+            .unwrap();
+        let n = model.vertex_count();
+        let c = SkinConstraints::free(n)
+            .with_painted(&mesh, &model)
+            .unwrap();
+        assert_eq!((c.max_distance.len(), c.backstop_distance.len()), (n, n));
+        for (j, p) in positions.iter().enumerate() {
+            let v = model.welded_from().map_or(j, |m| m[j] as usize);
+            assert_eq!(
+                c.max_distance[v],
+                0.1 * (p[2] + 1.0),
+                "weld {weld}, vertex {j}"
+            );
+            assert_eq!(c.backstop_distance[v], 0.02);
+        }
+        let pose = SkinPose {
+            positions: vec![Vec3A::ZERO; n],
+            normals: vec![Vec3A::Y; n],
+        };
+        assert_eq!(c.validate(n, &pose), Ok(()));
+    }
+    // Without the attributes the lists stay as they were.
+    let bare = Plane3d::new(Vec3::Y, Vec2::splat(1.0)).mesh().build();
+    let model = ClothBuilder::from_mesh(&bare).unwrap().build().unwrap();
+    let free = SkinConstraints::free(model.vertex_count());
+    assert_eq!(free.clone().with_painted(&bare, &model), Ok(free));
+    // A negative value, and an attribute of the wrong length.
+    let model = ClothBuilder::from_mesh(&mesh).unwrap().build().unwrap();
+    let mut bad = mesh.clone();
+    bad.insert_attribute(ATTRIBUTE_CLOTH_MAX_DISTANCE, vec![-1.0f32; positions.len()]);
+    let free = SkinConstraints::free(model.vertex_count());
+    assert_eq!(
+        free.clone().with_painted(&bad, &model),
+        Err(SkinError::Distance)
+    );
+    let mut short = mesh.clone();
+    short.insert_attribute(ATTRIBUTE_CLOTH_BACKSTOP, vec![0.02f32; 3]);
+    assert_eq!(free.with_painted(&short, &model), Err(SkinError::Mesh));
+}

@@ -19,9 +19,13 @@
 //!
 //! - [`SelfContacts::find`] once per step: the pairs that can come within
 //!   the thickness during the step, from each vertex's swept box (its
-//!   position and where its velocity takes it) sorted into a grid of cells
-//!   of the thickness's size. A pair's minimum distance is the thickness,
-//!   or its rest distance where that is shorter (a mesh folded at rest).
+//!   position and where its velocity takes it) in a grid of cells of the
+//!   thickness's size (a hash table filled by a counting sort; each pair
+//!   tested once, in the lowest cell the two boxes share). A pair's
+//!   minimum distance is the thickness, or its rest distance where that is
+//!   shorter (a mesh folded at rest); two vertices joined by a stretch or
+//!   shear spring are not a pair (the spring keeps them apart). After the
+//!   step the list is kept while the cloth moves slowly ([`SKIN`]).
 //! - [`SelfContacts::resolve`] in every substep of the `stiff` method (a
 //!   vertex moves less than the thickness in one) and after the step of
 //!   every other method: Gauss–Seidel over the pairs in a fixed order,
@@ -169,8 +173,13 @@ const MAX_CELLS: i64 = 512;
 /// [`resolve`](Self::resolve)), reused from step to step.
 #[derive(Clone, Debug, Default)]
 pub struct SelfContacts {
-    /// `(cell, vertex)`, sorted.
-    cells: Vec<(u64, u32)>,
+    /// Each vertex's swept box in grid cells (`lo`, `hi`, inclusive;
+    /// empty, `lo > hi`, for a vertex left out).
+    boxes: Vec<CellBox>,
+    /// The grid as a counting-sorted hash table: bucket `b`'s entries are
+    /// `entries[starts[b]..starts[b + 1]]`, in increasing vertex order.
+    starts: Vec<u32>,
+    entries: Vec<Entry>,
     /// The step's pairs, sorted by `(a, b)`.
     pairs: Vec<Pair>,
     /// Vertices left out of the step's pairs (their swept box was too large).
@@ -184,6 +193,63 @@ pub struct SelfContacts {
     all_v: Vec<Vec3A>,
     /// Scratch of [`resolve_after_step`](Self::resolve_after_step).
     after_step: (Vec<Vec3A>, Vec<Vec3A>),
+    /// The pair list kept from step to step, if any.
+    kept: Kept,
+}
+
+/// How far beyond the thickness, as a share of it, the pairs of a cloth
+/// alone (no other cloth near) are looked for when it moves slowly, for
+/// self-collision after the step ([`SelfContacts::resolve_after_step`]), so
+/// that the same list serves the next steps: until some vertex has moved
+/// that far from where it was when the list was made, apart from the
+/// whole cloth's common motion, counting the step's own motion (a Verlet
+/// list). A resting or gliding cloth then pays for the grid only now and
+/// then.
+pub const SKIN: f32 = 0.125;
+
+/// What a kept pair list was made for and from.
+#[derive(Clone, Debug, Default)]
+struct Kept {
+    /// The cloth's vertices when the list was made (empty: none kept).
+    built: Vec<Vec3A>,
+    /// The adjacency it was made for.
+    topology: u64,
+    /// Thickness, friction, slack and step, as bits.
+    key: [u32; 4],
+    /// The pins it was made with.
+    pins: Vec<u32>,
+}
+
+impl Kept {
+    /// Whether the list still holds every pair a new search of `x` moving
+    /// at `v` would find (see [`SKIN`]).
+    fn holds(&self, x: &[Vec3A], v: &[Vec3A], dt: f32, skin: f32) -> bool {
+        let n = self.built.len();
+        if n == 0 || x.len() < n || v.len() < n {
+            return false;
+        }
+        let inv = 1.0 / n as f32;
+        let drift = x[..n]
+            .iter()
+            .zip(&self.built)
+            .fold(Vec3A::ZERO, |c, (&x, &b)| c + (x - b))
+            * inv;
+        let mean = v[..n].iter().fold(Vec3A::ZERO, |u, &v| u + v) * inv;
+        // `|x − b − drift| + (|v|/4 + |v − mean|)·dt ≤ skin`, by the
+        // stronger `2·(p² + 2·(|v|²/16 + |v − mean|²)·dt²) ≤ skin²` (no
+        // square roots: this runs every step).
+        let dt2 = 2.0 * dt * dt;
+        let limit = 0.5 * skin * skin;
+        x[..n]
+            .iter()
+            .zip(&self.built)
+            .zip(&v[..n])
+            .all(|((&x, &b), &v)| {
+                (x - b - drift).length_squared()
+                    + (0.0625 * v.length_squared() + (v - mean).length_squared()) * dt2
+                    <= limit
+            })
+    }
 }
 
 /// A cell's key: its integer coordinates packed 21 bits each.
@@ -203,6 +269,38 @@ fn span(lo: [i64; 3], hi: [i64; 3]) -> i64 {
     (0..3)
         .map(|k| hi[k].saturating_sub(lo[k]).saturating_add(1).max(0))
         .fold(1i64, i64::saturating_mul)
+}
+
+/// A box of grid cells, `lo` to `hi` inclusive (empty where `lo > hi`).
+type CellBox = [[i32; 3]; 2];
+
+/// A box of no cells.
+const EMPTY_BOX: CellBox = [[0; 3], [-1; 3]];
+
+/// One vertex in one cell of the grid.
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    vertex: u32,
+    cell: [i32; 3],
+}
+
+/// Calls `f` with every cell of the box of cells `b` (inclusive).
+fn for_each_cell(b: &CellBox, mut f: impl FnMut([i32; 3])) {
+    for cx in b[0][0]..=b[1][0] {
+        for cy in b[0][1]..=b[1][1] {
+            for cz in b[0][2]..=b[1][2] {
+                f([cx, cy, cz]);
+            }
+        }
+    }
+}
+
+/// The hash-table bucket of cell `c` (`mask`: the table's size less one).
+fn bucket(c: [i32; 3], mask: u64) -> usize {
+    let h = (c[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (c[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (c[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
+    ((h ^ (h >> 29)) & mask) as usize
 }
 
 /// The keys of the cells (of size `1/inv`) that the box `lo..hi` overlaps,
@@ -275,8 +373,9 @@ impl SelfContacts {
     /// `dt` seconds that can come within `sc`'s thickness of each other or
     /// within the mean thickness of a vertex of another cloth, with `slack`
     /// (m) added to every swept box for what the step's forces add to the
-    /// straight motion (`stiff` passes the fall `|g|·dt²`; a quarter of
-    /// each vertex's own motion is added on top).
+    /// straight motion (`stiff` passes half the fall `|g|·dt²/2`, for a
+    /// vertex falling onto one held still; a quarter of each vertex's own
+    /// motion is added on top).
     pub fn find(
         &mut self,
         model: &ClothModel,
@@ -286,10 +385,74 @@ impl SelfContacts {
         sc: SelfCollisionInput<'_>,
         slack: f32,
     ) {
+        self.find_or_keep(model, x, v, dt, sc, slack, false);
+    }
+
+    /// [`find`](Self::find), or, with `reuse`, the last step's pairs while
+    /// they still serve, and a list made to serve the next steps when the
+    /// cloth moves slowly (see [`SKIN`]). Worth it where the pairs are
+    /// resolved a few times a step (after the step); `stiff` resolves them
+    /// in every substep, where the skin's extra pairs cost more than the
+    /// search.
+    #[allow(clippy::too_many_arguments)]
+    fn find_or_keep(
+        &mut self,
+        model: &ClothModel,
+        x: &[Vec3A],
+        v: &[Vec3A],
+        dt: f32,
+        sc: SelfCollisionInput<'_>,
+        slack: f32,
+        reuse: bool,
+    ) {
         let (thickness, friction) = (sc.setting.thickness, sc.setting.friction);
         let n = model.vertex_count().min(x.len()).min(v.len());
         let pinned = model.pinned();
-        let rest = model.topology().rest_positions();
+        let topology = model.topology();
+        // The kept list, if it still serves (a cloth alone only: the other
+        // cloths' vertices come and go).
+        let alone = reuse && sc.others.iter().all(|o| o.is_empty());
+        let skin = SKIN * thickness;
+        let key = [thickness, friction, slack, dt].map(f32::to_bits);
+        let made_for = |k: &Kept| {
+            k.topology == topology.adjacency().id()
+                && k.key == key
+                && k.pins == model.pins()
+                && k.built.len() == n
+        };
+        if alone && made_for(&self.kept) && self.kept.holds(x, v, dt, skin) {
+            for p in &mut self.pairs {
+                let d2 = x[p.a as usize].distance_squared(x[p.b as usize]);
+                p.overlap = if d2 < p.min * p.min {
+                    d2.sqrt()
+                } else {
+                    f32::INFINITY
+                };
+            }
+            self.own = n;
+            self.others.clear();
+            return;
+        }
+        // Keep the new list if the cloth moves slowly enough (measured as
+        // the kept list is checked, from where it is).
+        self.kept.built.clear();
+        self.kept.built.extend_from_slice(&x[..n]);
+        let keep = alone && self.kept.holds(x, v, dt, skin);
+        if !keep {
+            self.kept.built.clear();
+        }
+        let rest = topology.rest_positions();
+        let (adjacency, springs) = (topology.adjacency(), topology.springs());
+        // Two vertices joined by a stretch or shear spring: the spring
+        // keeps them apart (the thickness is below its rest length), so
+        // they are not a pair. Vertices joined by a bending spring can fold
+        // onto each other and are.
+        let linked = |a: usize, b: usize| {
+            adjacency.of(a).iter().any(|inc| {
+                inc.other as usize == b
+                    && springs[inc.spring as usize].kind != crate::model::SpringKind::Bend
+            })
+        };
         let mut others = core::mem::take(&mut self.others);
         others.clear();
         others.extend(sc.others.into_iter().flatten());
@@ -298,15 +461,26 @@ impl SelfContacts {
         xs.clear();
         vs.clear();
         xs.extend_from_slice(&x[..n]);
-        vs.extend_from_slice(&v[..n]);
+        if keep {
+            // Where the vertices are, grown by the skin: the list then
+            // covers their motion in this step and the next ones'.
+            vs.resize(n, Vec3A::ZERO);
+        } else {
+            vs.extend_from_slice(&v[..n]);
+        }
         xs.extend(others.iter().map(|o| o.position));
         vs.extend(others.iter().map(|_| Vec3A::ZERO));
         let half = 0.5 * thickness;
+        let (cell, slack) = if keep {
+            (thickness + 2.0 * (slack + skin), slack + skin)
+        } else {
+            (thickness, slack)
+        };
         self.find_where(
             &xs,
             &vs,
             dt,
-            [thickness, slack],
+            [cell, slack],
             |i| {
                 if i < n {
                     half
@@ -317,7 +491,8 @@ impl SelfContacts {
             |a, b| match (a < n, b < n) {
                 (true, true) => {
                     let min = thickness.min(rest[a].distance(rest[b]));
-                    (!(pinned[a] && pinned[b]) && min > 0.0).then_some((min, friction))
+                    (!(pinned[a] && pinned[b]) && min > 0.0 && !linked(a, b))
+                        .then_some((min, friction))
                 }
                 (true, false) => {
                     let o = &others[b - n];
@@ -330,6 +505,12 @@ impl SelfContacts {
         self.others = others;
         self.all_x = xs;
         self.all_v = vs;
+        if keep {
+            self.kept.topology = topology.adjacency().id();
+            self.kept.key = key;
+            self.kept.pins.clear();
+            self.kept.pins.extend_from_slice(model.pins());
+        }
     }
 
     /// [`find`](Self::find) over any vertices: cells of `cell` (m), each
@@ -345,8 +526,8 @@ impl SelfContacts {
         half: impl Fn(usize) -> f32,
         pair: impl Fn(usize, usize) -> Option<(f32, f32)>,
     ) {
-        self.cells.clear();
         self.pairs.clear();
+        self.boxes.clear();
         self.skipped = 0;
         let n = x.len().min(v.len());
         if n < 2 || cell.is_nan() || cell <= 0.0 {
@@ -354,39 +535,95 @@ impl SelfContacts {
         }
         let inv = 1.0 / cell;
         let margin = |i: usize| half(i) + slack + 0.25 * v[i].length() * dt;
+        // Each vertex's swept box, in cells.
+        let mut total = 0usize;
         for i in 0..n {
             let end = x[i] + v[i] * dt;
             let m = margin(i);
-            if !(x[i].is_finite() && end.is_finite() && m.is_finite()) {
-                self.skipped += 1;
-                continue;
-            }
-            match cells_of(x[i].min(end) - m, x[i].max(end) + m, inv) {
-                Some(keys) => self.cells.extend(keys.map(|k| (k, i as u32))),
-                None => self.skipped += 1,
+            let cells = (x[i].is_finite() && end.is_finite() && m.is_finite())
+                .then(|| {
+                    let (lo, hi) = (x[i].min(end) - m, x[i].max(end) + m);
+                    [cell_of(lo, inv), cell_of(hi, inv)]
+                })
+                .filter(|&[lo, hi]| {
+                    (1..=MAX_CELLS).contains(&span(lo, hi))
+                        && lo.iter().chain(&hi).all(|c| i32::try_from(*c).is_ok())
+                });
+            match cells {
+                Some(b) => {
+                    total += span(b[0], b[1]) as usize;
+                    self.boxes.push(b.map(|c| c.map(|k| k as i32)));
+                }
+                None => {
+                    self.skipped += 1;
+                    self.boxes.push(EMPTY_BOX);
+                }
             }
         }
-        self.cells.sort_unstable();
-        let mut start = 0;
-        while start < self.cells.len() {
-            let cell = self.cells[start].0;
-            let mut end = start + 1;
-            while end < self.cells.len() && self.cells[end].0 == cell {
-                end += 1;
-            }
-            for (k, &(_, a)) in self.cells[start..end].iter().enumerate() {
-                for &(_, b) in &self.cells[start + k + 1..end] {
-                    let (a, b) = (a.min(b) as usize, a.max(b) as usize);
-                    let Some((min, friction)) = pair(a, b) else {
+        // A counting sort of the (cell, vertex) entries into the buckets of
+        // a hash table of about twice their number: linear, where a sort of
+        // the entries was most of the step's self-collision cost.
+        let buckets = (2 * total).next_power_of_two().max(2);
+        let mask = buckets as u64 - 1;
+        self.starts.clear();
+        self.starts.resize(buckets + 1, 0);
+        for b in &self.boxes {
+            for_each_cell(b, |c| self.starts[bucket(c, mask)] += 1);
+        }
+        let mut sum = 0;
+        for s in &mut self.starts {
+            sum += *s;
+            *s = sum;
+        }
+        // `starts[b]` is now the end of bucket `b`: filled backwards from
+        // the last vertex, each bucket ends up in increasing vertex order
+        // and `starts[b]` at its start.
+        self.entries.clear();
+        self.entries.resize(total, Entry::default());
+        for (i, b) in self.boxes.iter().enumerate().rev() {
+            for_each_cell(b, |cell| {
+                let s = &mut self.starts[bucket(cell, mask)];
+                *s -= 1;
+                self.entries[*s as usize] = Entry {
+                    vertex: i as u32,
+                    cell,
+                };
+            });
+        }
+        for b in 0..buckets {
+            let (start, end) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+            let here = &self.entries[start..end];
+            for (k, ea) in here.iter().enumerate() {
+                let (a, box_a) = (ea.vertex as usize, self.boxes[ea.vertex as usize]);
+                for eb in &here[k + 1..] {
+                    // Another cell of the same bucket, or the same vertex.
+                    if eb.cell != ea.cell || eb.vertex == ea.vertex {
+                        continue;
+                    }
+                    // The pair is tested in the lowest cell the two boxes
+                    // share only: once.
+                    let b2 = eb.vertex as usize;
+                    let box_b = self.boxes[b2];
+                    if (0..3).any(|k| box_a[0][k].max(box_b[0][k]) != ea.cell[k]) {
+                        continue;
+                    }
+                    // Within reach of the largest least distance a pair
+                    // can have (the two half thicknesses), before the
+                    // pair's own test.
+                    let d = x[b2] - x[a];
+                    let approach = closest_approach(d, (v[b2] - v[a]) * dt);
+                    if approach > margin(a) + margin(b2) {
+                        continue;
+                    }
+                    let Some((min, friction)) = pair(a, b2) else {
                         continue;
                     };
-                    let reach = min + margin(a) - half(a) + margin(b) - half(b);
-                    let d = x[b] - x[a];
-                    if closest_approach(d, (v[b] - v[a]) * dt) <= reach {
+                    let reach = min + margin(a) - half(a) + margin(b2) - half(b2);
+                    if approach <= reach {
                         let d0 = d.length();
                         self.pairs.push(Pair {
                             a: a as u32,
-                            b: b as u32,
+                            b: b2 as u32,
                             min,
                             friction,
                             overlap: if d0 < min { d0 } else { f32::INFINITY },
@@ -394,11 +631,11 @@ impl SelfContacts {
                     }
                 }
             }
-            start = end;
         }
+        // In the pair order the resolution sweeps: the same on any thread
+        // count.
         self.pairs
             .sort_unstable_by_key(|p| (u64::from(p.a) << 32) | u64::from(p.b));
-        self.pairs.dedup_by_key(|p| (p.a, p.b));
     }
 
     /// Pairs found for the step.
@@ -454,14 +691,13 @@ impl SelfContacts {
             let Some(&xa) = x.get(a) else {
                 continue;
             };
-            let (xb, start_b) = if b < own {
+            let xb = if b < own {
                 match x.get(b) {
-                    Some(&xb) => (xb, start(b)),
+                    Some(&xb) => xb,
                     None => continue,
                 }
             } else {
-                let o = self.others[b - own].position;
-                (o, o)
+                self.others[b - own].position
             };
             let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
             let d = xb - xa;
@@ -469,6 +705,8 @@ impl SelfContacts {
             if d2 >= min * min {
                 continue;
             }
+            // The other cloths' vertices stand still through the step.
+            let start_b = if b < own { start(b) } else { xb };
             let (wa, wb) = (weight(a), weight(b));
             let w = wa + wb;
             if w <= 0.0 {
@@ -545,7 +783,7 @@ impl SelfContacts {
         );
         solved.clear();
         solved.extend_from_slice(&state.positions[..n]);
-        self.find(model, &before.positions[..n], &moved, dt, sc, 0.0);
+        self.find_or_keep(model, &before.positions[..n], &moved, dt, sc, 0.0, true);
         // The pairs the step left too close (the first pass's count; the
         // later passes settle what it disturbed).
         let mut touching = 0;

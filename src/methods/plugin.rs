@@ -284,6 +284,12 @@ fn step_cloths<M: ClothMethod>(
                 .map(|s| s.grown(particle_radius)),
         );
         ws.contact_motion.clear();
+        // Spheres move through `stiff`'s substeps, from where they were to
+        // where they are; capsules, boxes and planes are taken where they
+        // are through the step. Their motion is their centre's translation,
+        // and shifting a turned one back by it puts it where it never was:
+        // a character's bone capsules, so moved, doubled its cape's
+        // stretch. The projection after the step sweeps them all.
         ws.contact_motion.extend(
             [
                 (colliders.projection.len(), &colliders.projection_motion),
@@ -293,6 +299,11 @@ fn step_cloths<M: ClothMethod>(
             .into_iter()
             .flat_map(|(n, motion)| (0..n).map(|k| motion.get(k).copied().unwrap_or(Vec3A::ZERO))),
         );
+        for (m, shape) in ws.contact_motion.iter_mut().zip(&ws.contacts) {
+            if !matches!(shape, Shape::Capsule(c) if c.a == c.b) {
+                *m = Vec3A::ZERO;
+            }
+        }
         cloth.pin_velocities(dt as f32);
         let (penalty, contacts, contact_motion, solver_ws) = (
             &ws.penalty,

@@ -29,11 +29,13 @@ mod character;
 #[allow(unsafe_code)]
 mod machine;
 mod page;
+mod self_collision;
 mod sweep;
 
 pub use character::{CapeRow, cape_rows};
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
+pub use self_collision::{SelfCollisionRow, self_collision_rows};
 pub use sweep::{
     Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, SphereRow, cg_parts, frame_costs,
     many_cloths, scale_model, simd_levels, sphere_steps, sweep, sweep_methods, warm_state,
@@ -69,6 +71,9 @@ pub struct PerfConfig {
     pub cape_sizes: Vec<usize>,
     /// Fixed steps of each character-scene run (60 per second).
     pub cape_steps: usize,
+    /// Sides of the folded sheet whose step is timed with and without
+    /// self-collision.
+    pub self_collision_sizes: Vec<usize>,
     /// Only the sweep's methods whose name starts with this (and nothing
     /// else: no page is written), for profiling one case.
     pub only: Option<String>,
@@ -91,6 +96,7 @@ impl PerfConfig {
             stream_len: 1 << 24,
             cape_sizes: vec![20, 50],
             cape_steps: 600,
+            self_collision_sizes: vec![64, 101, 201],
             only: None,
         }
     }
@@ -109,6 +115,7 @@ impl PerfConfig {
             stream_len: 1 << 12,
             cape_sizes: vec![4],
             cape_steps: 20,
+            self_collision_sizes: vec![8],
             silk_table: None,
             only: None,
         }
@@ -206,6 +213,7 @@ mod tests {
             "## The frame",
             "## Sparse CG",
             "## Character cloth",
+            "## Self-collision",
             "## The limit",
         ] {
             assert!(md.contains(heading), "{heading} missing:\n{md}");

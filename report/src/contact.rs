@@ -1,0 +1,430 @@
+//! The contact cases (issue N): a cotton sheet folded onto itself and
+//! dropped on the ground, and a ball thrown through a sheet at 30 m/s.
+//! The exact implicit-Euler run cannot judge them (self-collision and a
+//! moving collider act after its step too), so they are judged by what a
+//! player would see: the exact intersection check
+//! ([`count_intersections`]) after every step, whether the ball came out
+//! on the far side of the cloth, and the largest stretch. The stability
+//! map runs them with every method ([`run`]); the perf page times one step
+//! of the folded sheet with and without self-collision ([`Stepper`]).
+//!
+//! A step here is the plugin's: the method's step under the guard (with
+//! self-collision inside it for `stiff`, after it for the others), then the
+//! colliders' swept projection ([`project_swept`]).
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use bevy::math::{Affine3A, Vec3, Vec3A};
+
+use bevy_cloth::collision::self_contact::{
+    IntersectionCheck, SelfCollisionInput, SelfContacts, count_intersections,
+};
+use bevy_cloth::collision::{Capsule, Plane, SelfCollision, Shape, Sweep, project_swept};
+use bevy_cloth::methods::{AnyMethod, AnyWorkspace};
+use bevy_cloth::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
+use bevy_cloth::solver::guard::{
+    DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
+};
+use bevy_cloth::solver::{StepInput, StepParams, max_stretch};
+
+/// The thrown ball's speed (m/s).
+pub const BALL_SPEED: f32 = 30.0;
+
+/// A cloth among colliders, one of which may be thrown.
+#[derive(Clone, Debug)]
+pub struct ContactCase {
+    /// Short name (the map's row).
+    pub name: String,
+    /// The cloth (cotton).
+    pub model: ClothModel,
+    /// Its parameters (cotton's springs, 1/60 s steps).
+    pub params: StepParams,
+    /// Where it starts, at rest.
+    pub start: ClothState,
+    /// The colliders (projected after every step; inside `stiff`'s
+    /// substeps too).
+    pub solids: Vec<Shape>,
+    /// A collider that moves at a constant velocity from the second step
+    /// on: its index in `solids` and its velocity.
+    pub thrown: Option<(usize, Vec3A)>,
+    /// The cloth's self-collision (`None`: off).
+    pub self_collision: Option<SelfCollision>,
+    /// Steps to run.
+    pub steps: usize,
+}
+
+/// A `cols`-wide cotton sheet of 1 m × 1 m folded into `layers` layers
+/// (a zig-zag along `x`, each fold a half circle), 5 cm above a ground of
+/// friction 0.5, with self-collision at [`SelfCollision::for_model`]:
+/// after its fall the layers land on each other.
+pub fn folded(cols: usize, layers: usize, seconds: f32) -> ContactCase {
+    let model = ClothBuilder::grid(
+        cols,
+        cols,
+        Vec3::ZERO,
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(1.0, 0.0, 0.0),
+    )
+    .with_material(ClothMaterial::COTTON)
+    .build()
+    .expect("a valid grid");
+    let sc = SelfCollision::for_model(&model);
+    // Layers 1.3 thicknesses apart: apart at the start, close enough that
+    // a layer that falls through the one below shows at once.
+    let r = 0.65 * sc.thickness;
+    let layers = layers.max(1);
+    let arc = core::f32::consts::PI * r;
+    let a = (1.0 - (layers - 1) as f32 * arc) / layers as f32;
+    let (x0, h) = (-0.5 * a, 0.05);
+    // Where the point `s` metres along the unfolded sheet's `x` lies.
+    let place = |s: f32| -> (f32, f32) {
+        let piece = a + arc;
+        let j = ((s / piece).floor() as usize).min(layers - 1);
+        let u = s - j as f32 * piece;
+        let y = h + 2.0 * r * j as f32;
+        let forward = j.is_multiple_of(2);
+        if u <= a || j == layers - 1 {
+            let u = u.min(a);
+            (if forward { x0 + u } else { x0 + a - u }, y)
+        } else {
+            let theta = (u - a) / r;
+            let dx = r * theta.sin();
+            let y = y + r * (1.0 - theta.cos());
+            (if forward { x0 + a + dx } else { x0 - dx }, y)
+        }
+    };
+    let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    for p in &mut start.positions {
+        let (x, y) = place(p.x);
+        *p = Vec3A::new(x, y, p.z);
+    }
+    ContactCase {
+        name: format!("{cols}² folded in {layers}, on the ground"),
+        params: cotton_params(&model),
+        start,
+        solids: vec![Shape::Plane(Plane {
+            point: Vec3A::ZERO,
+            normal: Vec3A::Y,
+            friction: 0.5,
+        })],
+        thrown: None,
+        self_collision: Some(sc),
+        steps: (seconds * 60.0).round().max(1.0) as usize,
+        model,
+    }
+}
+
+/// A free `cols`² cotton sheet of 2 m × 2 m, level, and a ball of `radius`
+/// below it thrown straight up at [`BALL_SPEED`] (half a metre a step),
+/// slightly off its middle, from 0.4 m below it: its top passes the
+/// sheet's level within its first moving step, and it goes on for seven
+/// more.
+pub fn ball(cols: usize, radius: f32) -> ContactCase {
+    let model = ClothBuilder::grid(
+        cols,
+        cols,
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, -1.0),
+        Vec3::new(-1.0, 0.0, 1.0),
+    )
+    .with_material(ClothMaterial::COTTON)
+    .build()
+    .expect("a valid grid");
+    let center = Vec3A::new(0.02, -0.4 - radius, 0.03);
+    ContactCase {
+        name: format!("{cols}², a {:.0} cm ball at 30 m/s", radius * 100.0),
+        params: cotton_params(&model),
+        start: ClothState::at_rest(&model, &Affine3A::IDENTITY),
+        solids: vec![Shape::Capsule(Capsule {
+            a: center,
+            b: center,
+            radius,
+            friction: 0.5,
+        })],
+        thrown: Some((0, Vec3A::new(0.0, BALL_SPEED, 0.0))),
+        self_collision: None,
+        steps: 9,
+        model,
+    }
+}
+
+fn cotton_params(model: &ClothModel) -> StepParams {
+    StepParams {
+        dt: 1.0 / 60.0,
+        stiffness: ClothMaterial::COTTON.spring_stiffness(model),
+        ..StepParams::LAB
+    }
+}
+
+impl ContactCase {
+    /// This case without self-collision, named so.
+    pub fn without_self_collision(mut self) -> Self {
+        self.self_collision = None;
+        self.name.push_str(", no self-collision");
+        self
+    }
+}
+
+/// What one step of a [`ContactCase`] keeps from step to step.
+#[derive(Default)]
+pub struct Stepper {
+    ws: AnyWorkspace,
+    self_contacts: SelfContacts,
+    backup: ClothState,
+    memory: GuardMemory,
+    motion: Vec<Vec3A>,
+}
+
+impl Stepper {
+    /// One step of `case` with `method`, the colliders at `solids` (moved
+    /// by the step if one is thrown): the method under the guard (pause
+    /// policy), self-collision after it unless the method handled it, the
+    /// swept projection. Returns the guard's verdict.
+    pub fn step(
+        &mut self,
+        case: &ContactCase,
+        method: &AnyMethod,
+        state: &mut ClothState,
+        solids: &mut [Shape],
+        moving: bool,
+    ) -> Result<(), GuardError> {
+        let model = &case.model;
+        let dt = case.params.dt as f32;
+        let mut params = case.params;
+        self.motion.clear();
+        self.motion.resize(solids.len(), Vec3A::ZERO);
+        if let (true, Some((k, velocity))) = (moving, case.thrown)
+            && let Some(solid) = solids.get_mut(k)
+        {
+            *solid = solid.translated(velocity * dt);
+            self.motion[k] = velocity * dt;
+            params.collider_speed = velocity.length();
+        }
+        let bounds = GuardBounds::default().for_method(method.uses_stiffness());
+        let sc = case.self_collision.map(SelfCollisionInput::alone);
+        let Self {
+            ws,
+            self_contacts,
+            backup,
+            memory,
+            motion,
+        } = self;
+        let solids = &*solids;
+        let done = guarded_step(
+            &bounds,
+            GuardPolicy::Pause,
+            memory,
+            model,
+            state,
+            backup,
+            &params,
+            |s, p| {
+                let input = StepInput {
+                    model,
+                    params: p,
+                    spheres: &[],
+                    contacts: solids,
+                    contact_motion: motion,
+                    skin: None,
+                    self_collision: sc,
+                };
+                method.step_with(input, s, ws)
+            },
+        )?;
+        if let Some(sc) = sc
+            && done.report.self_contacts.is_none()
+        {
+            self_contacts.resolve_after_step(model, state, backup, &params, sc);
+        }
+        let sweep = Sweep {
+            motion,
+            start: &backup.positions,
+            edges: false,
+        };
+        project_swept(model, state, solids, sweep, 0.0, dt);
+        Ok(())
+    }
+}
+
+/// The end of one run of a [`ContactCase`].
+#[derive(Clone, Debug, Default)]
+pub struct ContactRun {
+    /// Steps completed.
+    pub steps: usize,
+    /// The guard's stop: the step at which it happened and why.
+    pub caught: Option<(usize, DivergenceReason)>,
+    /// Why the run failed (a panic, or valid input refused).
+    pub failed: Option<String>,
+    /// The most mesh edges through the cloth's own triangles after any
+    /// step (the exact check).
+    pub penetrations: usize,
+    /// The first step after which the cloth was no longer ahead of the
+    /// thrown ball (no triangle met by a ray from the ball's centre along
+    /// its motion): the ball passed.
+    pub passed: Option<usize>,
+    /// The most vertices inside the thrown ball after any step.
+    pub inside: usize,
+    /// The largest spring stretch after any step.
+    pub max_stretch: f32,
+}
+
+impl ContactRun {
+    /// The map's cell: `✓` when the cloth stayed whole (largest stretch
+    /// within [`TORN`]) and, for the folded sheet, never through itself;
+    /// for the ball, in front of it with nothing inside; else what went
+    /// wrong.
+    pub fn cell(&self, thrown: bool) -> String {
+        if let Some(why) = &self.failed {
+            return format!("failed: {why}");
+        }
+        if let Some((step, reason)) = self.caught {
+            return format!("caught @{step} {reason:?}");
+        }
+        let whole = self.max_stretch <= TORN;
+        let stretch = format!("str {:.1} %", 100.0 * self.max_stretch);
+        let (good, what) = if thrown {
+            match self.passed {
+                Some(step) => (false, format!("passed @{step}")),
+                None if self.inside > 0 => (false, format!("{} inside", self.inside)),
+                None => (true, "held".to_string()),
+            }
+        } else {
+            (
+                self.penetrations == 0,
+                format!("{} through", self.penetrations),
+            )
+        };
+        let mark = if good && whole { "✓" } else { "✗" };
+        format!("{mark} {what}; {stretch}")
+    }
+}
+
+/// The largest stretch a cell may show and be `✓`: cotton stretched by
+/// more than a tenth has torn.
+pub const TORN: f32 = 0.1;
+
+/// Whether a ray from `from` along `direction` meets a triangle of the
+/// cloth at `x` (Möller–Trumbore, ahead of `from` only).
+fn ray_meets(model: &ClothModel, x: &[Vec3A], from: Vec3A, direction: Vec3A) -> bool {
+    model.topology().triangles().iter().any(|t| {
+        let [a, b, c] = t.map(|i| x[i as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let p = direction.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = (from - a) / det;
+        let u = s.dot(p);
+        let q = s.cross(e1);
+        let v = direction.dot(q);
+        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) > 0.0
+    })
+}
+
+/// Runs `method` through `case`: one step with everything still, then the
+/// thrown collider (if any) moving, checking after every step.
+pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
+    let mut out = ContactRun::default();
+    let mut state = case.start.clone();
+    let mut solids = case.solids.clone();
+    let mut stepper = Stepper::default();
+    let mut check = IntersectionCheck::default();
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        for n in 0..case.steps {
+            match stepper.step(case, method, &mut state, &mut solids, n > 0) {
+                Ok(()) => {}
+                Err(GuardError::Diverged { reason, .. }) => {
+                    out.caught = Some((n, reason));
+                    return;
+                }
+                Err(GuardError::Refused(e)) => {
+                    out.failed = Some(format!("refused: {e}"));
+                    return;
+                }
+            }
+            out.steps = n + 1;
+            let x = &state.positions;
+            out.max_stretch = out.max_stretch.max(max_stretch(&case.model, x));
+            out.penetrations =
+                out.penetrations
+                    .max(count_intersections(&case.model, x, &mut check));
+            if let Some((k, velocity)) = case.thrown
+                && let Some(Shape::Capsule(ball)) = solids.get(k)
+            {
+                let center = ball.a;
+                let inside = x
+                    .iter()
+                    .filter(|p| p.distance(center) < ball.radius - 1e-3)
+                    .count();
+                out.inside = out.inside.max(inside);
+                let facing = velocity.normalize_or_zero();
+                // Before the ball reaches the sheet's plane a ray always
+                // meets it; after, only if the sheet is still ahead.
+                if n > 0 && out.passed.is_none() && !ray_meets(&case.model, x, center, facing) {
+                    out.passed = Some(n);
+                }
+            }
+        }
+    }));
+    if let Err(panic) = result {
+        let text = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        out.failed = Some(format!("panicked: {text}"));
+    } else if out.failed.is_none() && !state.is_finite() {
+        out.failed = Some("non-finite state passed the guard".into());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy_cloth::XpbdSolver;
+
+    #[test]
+    fn the_folded_sheet_starts_apart_with_its_rest_lengths_nearly_kept() {
+        let case = folded(16, 4, 1.0);
+        let mut check = IntersectionCheck::default();
+        assert_eq!(
+            count_intersections(&case.model, &case.start.positions, &mut check),
+            0
+        );
+        // The folds' chords are shorter than their arcs: compressed, never
+        // stretched.
+        assert!(max_stretch(&case.model, &case.start.positions) < 1e-3);
+        let top = case.start.positions.iter().map(|p| p.y).fold(0.0, f32::max);
+        let thickness = case.self_collision.unwrap().thickness;
+        assert!(top > 0.05 + 3.0 * thickness, "four layers: top at {top}");
+    }
+
+    #[test]
+    fn stiff_keeps_the_folded_sheet_from_passing_through_itself_and_not_without() {
+        let stiff = AnyMethod::Xpbd(XpbdSolver::STIFF);
+        let with = run(&folded(16, 4, 1.0), &stiff);
+        assert_eq!((with.caught, with.failed.clone()), (None, None));
+        assert_eq!(with.penetrations, 0, "{with:?}");
+        assert!(with.cell(false).starts_with('✓'));
+        let without = run(&folded(16, 4, 1.0).without_self_collision(), &stiff);
+        assert!(without.penetrations > 0, "{without:?}");
+        assert!(without.cell(false).starts_with('✗'));
+    }
+
+    #[test]
+    fn a_ball_through_a_sheet_is_seen_passing_when_nothing_stops_it() {
+        let stiff = AnyMethod::Xpbd(XpbdSolver::STIFF);
+        let held = run(&ball(24, 0.25), &stiff);
+        assert_eq!((held.caught, held.passed, held.inside), (None, None, 0));
+        // The same throw with the ball acting on nothing: it passes.
+        let mut ghost = ball(24, 0.25);
+        if let Some(Shape::Capsule(c)) = ghost.solids.get_mut(0) {
+            c.radius = 1e-4;
+        }
+        let passed = run(&ghost, &stiff);
+        assert!(passed.passed.is_some(), "{passed:?}");
+        assert!(passed.cell(true).starts_with("✗ passed"));
+    }
+}
