@@ -3,6 +3,7 @@
 //! ```text
 //! cargo run --release -p bevy_cloth_report [-- --out docs/report] [--tiny]
 //! cargo run --release -p bevy_cloth_report -- --stability [--out docs/report] [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --contact [--out docs/report] [--tiny]
 //! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
 //! ```
 //!
@@ -10,8 +11,10 @@
 //! charts), every method measured against the exact implicit-Euler step.
 //! `--stability`: the stability map (`stability.md`, `stability.svg`), every
 //! method × stiffness × time step, resolutions and extreme cases, classified
-//! against the exact method. `--perf`: the performance page (`perf.md`,
-//! `perf-scaling.svg`).
+//! against the exact method. `--contact`: the stability map's contact
+//! extreme cases alone, rewritten in place in an existing `stability.md`
+//! (they take minutes where the whole map takes an hour). `--perf`: the
+//! performance page (`perf.md`, `perf-scaling.svg`).
 
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -20,13 +23,14 @@ use bevy_cloth_report::accuracy::{self, ReportConfig};
 use bevy_cloth_report::perf::{self, PerfConfig};
 use bevy_cloth_report::stability::{self, StabilityConfig};
 
-const USAGE: &str = "usage: bevy_cloth_report [--stability | --perf] [--out DIR] [--tiny] \
+const USAGE: &str = "usage: bevy_cloth_report [--stability | --contact | --perf] [--out DIR] [--tiny] \
                      [--sizes 21,51] [--only NAME] [--seconds S]";
 
 #[derive(PartialEq)]
 enum Mode {
     Accuracy,
     Stability,
+    Contact,
     Perf,
 }
 
@@ -70,6 +74,7 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
     while let Some(arg) = parser.next()? {
         match arg {
             Long("stability") => o.mode = Mode::Stability,
+            Long("contact") => o.mode = Mode::Contact,
             Long("perf") => o.mode = Mode::Perf,
             Long("out") => o.out = Some(parser.value()?.string()?),
             Long("tiny") => o.tiny = true,
@@ -133,6 +138,16 @@ fn main() -> ExitCode {
                 StabilityConfig::full(&out)
             };
             stability::run(&config).map(|_| format!("wrote {out}/stability.md"))
+        }
+        Mode::Contact => {
+            let out = o.out.unwrap_or_else(|| "docs/report".into());
+            let config = if o.tiny {
+                StabilityConfig::tiny(&out)
+            } else {
+                StabilityConfig::full(&out)
+            };
+            stability::rerun_contact(&config)
+                .map(|_| format!("rewrote the contact cases in {out}/stability.md"))
         }
         Mode::Perf => {
             let out = o.out.unwrap_or_else(|| "docs".into());

@@ -373,9 +373,8 @@ impl SelfContacts {
     /// `dt` seconds that can come within `sc`'s thickness of each other or
     /// within the mean thickness of a vertex of another cloth, with `slack`
     /// (m) added to every swept box for what the step's forces add to the
-    /// straight motion (`stiff` passes half the fall `|g|·dt²/2`, for a
-    /// vertex falling onto one held still; a quarter of each vertex's own
-    /// motion is added on top).
+    /// straight motion (`stiff` passes the fall `|g|·dt²`; a quarter of
+    /// each vertex's own motion is added on top).
     pub fn find(
         &mut self,
         model: &ClothModel,
