@@ -57,6 +57,12 @@ use bevy::prelude::*;
 
 use crate::model::{ClothModel, ClothState};
 
+mod check;
+mod layers;
+
+pub use check::{IntersectionCheck, count_crossings, count_intersections};
+pub use layers::ClothLayers;
+
 /// A cloth that collides with itself: add it to a cloth entity (any
 /// method). A cloth without it pays nothing.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
@@ -252,12 +258,6 @@ impl Kept {
     }
 }
 
-/// A cell's key: its integer coordinates packed 21 bits each.
-fn key(c: [i64; 3]) -> u64 {
-    let m = (1u64 << 21) - 1;
-    ((c[0] as u64) & m) | (((c[1] as u64) & m) << 21) | (((c[2] as u64) & m) << 42)
-}
-
 fn cell_of(p: Vec3A, inv: f32) -> [i64; 3] {
     let q = p * inv;
     [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
@@ -301,17 +301,6 @@ fn bucket(c: [i32; 3], mask: u64) -> usize {
         ^ (c[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
         ^ (c[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
     ((h ^ (h >> 29)) & mask) as usize
-}
-
-/// The keys of the cells (of size `1/inv`) that the box `lo..hi` overlaps,
-/// or `None` if it overlaps more than [`MAX_CELLS`] (or none).
-fn cells_of(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<impl Iterator<Item = u64>> {
-    let (lo, hi) = (cell_of(lo, inv), cell_of(hi, inv));
-    (1..=MAX_CELLS).contains(&span(lo, hi)).then(|| {
-        (lo[0]..=hi[0]).flat_map(move |cx| {
-            (lo[1]..=hi[1]).flat_map(move |cy| (lo[2]..=hi[2]).map(move |cz| key([cx, cy, cz])))
-        })
-    })
 }
 
 /// The least distance between two points moving in straight lines over
@@ -811,246 +800,4 @@ impl SelfContacts {
         self.after_step = (moved, solved);
         touching
     }
-}
-
-/// Cloths against each other after their steps: what each cloth's step
-/// could not see (the other cloths move through the step too, while each
-/// saw them where they were at its start). Every cloth with a
-/// [`SelfCollision`] is [`add`](Self::add)ed with where its step began and
-/// ended; [`resolve`](Self::resolve) then finds, in one broad phase, the
-/// pairs of vertices of different cloths within the mean of their
-/// thicknesses and pushes them apart by inverse mass in
-/// [`AFTER_STEP_PASSES`] passes.
-#[derive(Clone, Debug, Default)]
-pub struct ClothLayers {
-    contacts: SelfContacts,
-    /// Per vertex of all cloths: the step's start, its end (resolved in
-    /// place), its motion over the step as a velocity, its inverse mass,
-    /// its cloth, half its cloth's thickness and its cloth's friction.
-    start: Vec<Vec3A>,
-    x: Vec<Vec3A>,
-    v: Vec<Vec3A>,
-    weight: Vec<f32>,
-    cloth: Vec<u32>,
-    half: Vec<f32>,
-    friction: Vec<f32>,
-    /// Where each cloth's vertices begin.
-    offsets: Vec<usize>,
-}
-
-impl ClothLayers {
-    /// Empties it for a new step.
-    pub fn clear(&mut self) {
-        self.start.clear();
-        self.x.clear();
-        self.v.clear();
-        self.weight.clear();
-        self.cloth.clear();
-        self.half.clear();
-        self.friction.clear();
-        self.offsets.clear();
-    }
-
-    /// Adds a cloth whose step of `dt` went from `before` to `after`;
-    /// returns its index among those added.
-    pub fn add(
-        &mut self,
-        model: &ClothModel,
-        before: &[Vec3A],
-        after: &[Vec3A],
-        dt: f32,
-        sc: SelfCollision,
-    ) -> usize {
-        let index = self.offsets.len();
-        self.offsets.push(self.x.len());
-        let n = model.vertex_count().min(before.len()).min(after.len());
-        let inv_dt = 1.0 / dt;
-        for i in 0..n {
-            self.start.push(before[i]);
-            self.x.push(after[i]);
-            self.v.push((after[i] - before[i]) * inv_dt);
-            self.weight.push(inverse_mass(model, i));
-            self.cloth.push(index as u32);
-            self.half.push(0.5 * sc.thickness);
-            self.friction.push(sc.friction);
-        }
-        index
-    }
-
-    /// Finds the pairs across cloths over the step of `dt` and pushes them
-    /// apart; returns the pairs the steps left too close (the first pass's).
-    pub fn resolve(&mut self, dt: f32) -> u32 {
-        if self.offsets.len() < 2 {
-            return 0;
-        }
-        let Self {
-            contacts,
-            start,
-            x,
-            v,
-            weight,
-            cloth,
-            half,
-            friction,
-            ..
-        } = self;
-        let cell = 2.0 * half.iter().copied().fold(0.0, f32::max);
-        contacts.find_where(
-            start,
-            v,
-            dt,
-            [cell, 0.0],
-            |i| half[i],
-            |a, b| {
-                (cloth[a] != cloth[b] && weight[a] + weight[b] > 0.0)
-                    .then(|| (half[a] + half[b], 0.5 * (friction[a] + friction[b])))
-            },
-        );
-        contacts.own = x.len();
-        contacts.others.clear();
-        let mut touching = 0;
-        for pass in 0..AFTER_STEP_PASSES {
-            let now = contacts.resolve_weighted(x, |i| start[i], 1.0, |i| weight[i]);
-            if pass == 0 {
-                touching = now;
-            }
-            if now == 0 {
-                break;
-            }
-        }
-        touching
-    }
-
-    /// Cloth `index`'s resolved positions (as many as it added).
-    pub fn positions(&self, index: usize) -> &[Vec3A] {
-        let from = self.offsets.get(index).copied().unwrap_or(self.x.len());
-        let to = self.offsets.get(index + 1).copied().unwrap_or(self.x.len());
-        &self.x[from..to]
-    }
-}
-
-/// Scratch of [`count_intersections`]: the triangles' cells.
-#[derive(Clone, Debug, Default)]
-pub struct IntersectionCheck {
-    cells: Vec<(u64, u32)>,
-    candidates: Vec<u32>,
-    edges: Vec<(u32, u32)>,
-}
-
-/// Whether the segment `p`–`q` passes through the triangle `a, b, c`: its
-/// ends strictly on opposite sides of the triangle's plane (by more than a
-/// millionth of the segment's length: a segment lying in the plane, as in
-/// a flat sheet, touches rather than passes) and the crossing point inside
-/// the triangle or on its border.
-fn segment_hits_triangle(p: Vec3A, q: Vec3A, [a, b, c]: [Vec3A; 3]) -> bool {
-    let Some(n) = (b - a).cross(c - a).try_normalize() else {
-        return false;
-    };
-    let (dp, dq) = ((p - a).dot(n), (q - a).dot(n));
-    let eps = 1e-6 * p.distance(q);
-    if !((dp > eps && dq < -eps) || (dp < -eps && dq > eps)) {
-        return false;
-    }
-    let x = p + (q - p) * (dp / (dp - dq));
-    let side = |u: Vec3A, w: Vec3A| (w - u).cross(x - u).dot(n) >= 0.0;
-    side(a, b) && side(b, c) && side(c, a)
-}
-
-/// The exact check: how many of `model`'s mesh edges at `x` pass through
-/// one of its triangles that shares no vertex with the edge (each edge
-/// counted once per triangle it passes through). 0 for a surface that does
-/// not pass through itself.
-pub fn count_intersections(
-    model: &ClothModel,
-    x: &[Vec3A],
-    check: &mut IntersectionCheck,
-) -> usize {
-    count_through((model, x), (model, x), true, check)
-}
-
-/// The exact check between two cloths: how many mesh edges of either pass
-/// through a triangle of the other. 0 for two surfaces that do not pass
-/// through each other.
-pub fn count_crossings(
-    a: (&ClothModel, &[Vec3A]),
-    b: (&ClothModel, &[Vec3A]),
-    check: &mut IntersectionCheck,
-) -> usize {
-    count_through(a, b, false, check) + count_through(b, a, false, check)
-}
-
-/// Edges of the first cloth through triangles of the second; `same` when
-/// they are one cloth (an edge and a triangle sharing a vertex are then
-/// not counted).
-fn count_through(
-    (edge_model, xe): (&ClothModel, &[Vec3A]),
-    (model, x): (&ClothModel, &[Vec3A]),
-    same: bool,
-    check: &mut IntersectionCheck,
-) -> usize {
-    let triangles = model.topology().triangles();
-    if triangles.is_empty()
-        || x.len() < model.vertex_count()
-        || xe.len() < edge_model.vertex_count()
-    {
-        return 0;
-    }
-    let corners = |t: &[u32; 3]| t.map(|v| x[v as usize]);
-    // Cells of the mean edge's size.
-    let mut length = 0.0f32;
-    for t in triangles {
-        let [a, b, c] = corners(t);
-        length += a.distance(b) + b.distance(c) + c.distance(a);
-    }
-    let size = length / (3 * triangles.len()) as f32;
-    if !(size > 0.0 && size.is_finite()) {
-        return 0;
-    }
-    let inv = 1.0 / size;
-    check.cells.clear();
-    for (i, t) in triangles.iter().enumerate() {
-        let [a, b, c] = corners(t);
-        if let Some(keys) = cells_of(a.min(b).min(c), a.max(b).max(c), inv) {
-            check.cells.extend(keys.map(|k| (k, i as u32)));
-        }
-    }
-    check.cells.sort_unstable();
-    // Each edge once.
-    check.edges.clear();
-    for t in edge_model.topology().triangles() {
-        for (u, w) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            check.edges.push((u.min(w), u.max(w)));
-        }
-    }
-    check.edges.sort_unstable();
-    check.edges.dedup();
-    let mut count = 0;
-    for &(u, w) in &check.edges {
-        let (p, q) = (xe[u as usize], xe[w as usize]);
-        let Some(keys) = cells_of(p.min(q), p.max(q), inv) else {
-            continue;
-        };
-        check.candidates.clear();
-        for k in keys {
-            let from = check.cells.partition_point(|&(c, _)| c < k);
-            check.candidates.extend(
-                check.cells[from..]
-                    .iter()
-                    .take_while(|&&(c, _)| c == k)
-                    .map(|&(_, t)| t),
-            );
-        }
-        check.candidates.sort_unstable();
-        check.candidates.dedup();
-        for &other in &check.candidates {
-            let tri = triangles[other as usize];
-            if same && (tri.contains(&u) || tri.contains(&w)) {
-                continue;
-            }
-            if segment_hits_triangle(p, q, corners(&tri)) {
-                count += 1;
-            }
-        }
-    }
-    count
 }
