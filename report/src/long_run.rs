@@ -15,7 +15,9 @@
 //!   cloth's mean height;
 //! - **max stretch** over the whole run;
 //! - **flagged**: the share of steps whose estimated error exceeds
-//!   [`CONVERGENCE_TOLERANCE`](bevy_cloth::solver::CONVERGENCE_TOLERANCE).
+//!   [`CONVERGENCE_TOLERANCE`](bevy_cloth::solver::CONVERGENCE_TOLERANCE),
+//!   after the projection as the plugin measures it
+//!   ([`ContactError`](bevy_cloth::solver::ContactError)).
 //!
 //! Distances and heights are relative to the reference's drop (how far its
 //! lowest point is below the flat sheet's at the end, at least 1 % of the

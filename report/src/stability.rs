@@ -717,7 +717,9 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
          height) over the last {} s (the last fifth of a shorter run), relative to the drop;\n\
          - **max stretch** (`str`) over the whole run;\n\
          - **flagged** (⚑): the share of steps whose estimated error exceeds {:.0} % of their \
-         motion (`CONVERGENCE_TOLERANCE`, what raises `ClothNotConverged`).\n\n\
+         motion (`CONVERGENCE_TOLERANCE`, what raises `ClothNotConverged`), measured as the \
+         plugin measures it: after the sphere's projection, without what the projection undoes \
+         (`ContactError`).\n\n\
          A hanging cloth without bending stiffness is chaotic: two runs that start 1e-5 m apart \
          part within seconds, so after the window only what chaos does not move is compared. \
          **Correct** (✓): each position measure within {:.2} of the reference's, the max \

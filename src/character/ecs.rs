@@ -403,6 +403,9 @@ fn hold_to_skin(
             .validate(cloth.model.vertex_count(), &skin.pose)
         {
             Ok(()) => {
+                // The skin's limits are held as a collider's projection is,
+                // and measured so (see `PendingConvergence`).
+                cloth.convergence.before_projection(&cloth.state.positions);
                 apply_skin(
                     &cloth.model,
                     &mut cloth.state,

@@ -311,6 +311,7 @@ pub(crate) fn project_running_cloths(
         } else {
             &[]
         };
+        cloth.convergence.before_projection(&cloth.state.positions);
         let contacts = project(
             &cloth.model,
             &mut cloth.state,

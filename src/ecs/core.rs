@@ -335,16 +335,7 @@ pub(crate) fn guard_and_measure(
         if !cloth.claimed {
             return;
         }
-        if let Some((relative_error, behaviour)) = cloth.not_converged.take() {
-            let message = ClothNotConverged {
-                entity,
-                method: stats.method,
-                iterations: stats.iterations,
-                relative_error,
-                tolerance: guard.convergence_tolerance,
-                step: stats.steps,
-                behaviour,
-            };
+        if let Some(message) = settle_convergence(entity, cloth, params, guard, &mut stats, dt) {
             unconverged.borrow_local_mut().push(message);
         }
         if let Some((reason, action)) = cloth.event.take() {
@@ -414,6 +405,61 @@ pub(crate) fn guard_and_measure(
         warn!("{line}");
     }
     convergence.write_batch(found);
+}
+
+/// Judges the last step's convergence (see `PendingConvergence`): measured
+/// again after the projection if that moved vertices, then
+/// [`ClothStats::converged`] and the count of unconverged steps, and the
+/// [`ClothNotConverged`] message the first time.
+fn settle_convergence(
+    entity: Entity,
+    cloth: &mut Cloth,
+    params: &ClothParams,
+    guard: &ClothGuard,
+    stats: &mut ClothStats,
+    dt: f64,
+) -> Option<ClothNotConverged> {
+    let pending = &mut cloth.convergence;
+    let mut error = pending.step.take()?;
+    if pending.remeasure && pending.kept && pending.solved != cloth.state.positions {
+        error = pending
+            .scratch
+            .relative_error(
+                &cloth.model,
+                &cloth.last_good,
+                &pending.solved,
+                &cloth.state.positions,
+                &params.step_params(dt),
+            )
+            .or(error);
+    }
+    pending.remeasure = false;
+    pending.kept = false;
+    stats.relative_error = error;
+    stats.converged = error.is_none_or(|e| e <= guard.convergence_tolerance);
+    if stats.converged {
+        return None;
+    }
+    stats.unconverged_steps += 1;
+    if cloth.convergence_reported {
+        return None;
+    }
+    cloth.convergence_reported = true;
+    let relative_error = error?;
+    Some(ClothNotConverged {
+        entity,
+        method: stats.method,
+        iterations: stats.iterations,
+        relative_error,
+        tolerance: guard.convergence_tolerance,
+        step: stats.steps,
+        behaviour: crate::ecs::Unconverged::of(
+            relative_error,
+            &cloth.last_good.velocities,
+            &cloth.state.velocities,
+            cloth.model.pinned(),
+        ),
+    })
 }
 
 /// One kind of warning, at most one line a second: the first at once, the

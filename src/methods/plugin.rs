@@ -414,26 +414,12 @@ fn step_cloths<M: ClothMethod>(
                 stats.step_time = elapsed;
                 stats.iterations = done.report.iterations;
                 stats.residual = done.report.residual;
-                stats.relative_error = done.report.relative_error;
-                stats.converged = done
-                    .report
-                    .relative_error
-                    .is_none_or(|e| e <= guard.convergence_tolerance);
-                if !stats.converged {
-                    stats.unconverged_steps += 1;
-                    if !cloth.convergence_reported {
-                        cloth.convergence_reported = true;
-                        cloth.not_converged = done.report.relative_error.map(|e| {
-                            let behaviour = crate::ecs::Unconverged::of(
-                                e,
-                                &cloth.last_good.velocities,
-                                &cloth.state.velocities,
-                                model.pinned(),
-                            );
-                            (e, behaviour)
-                        });
-                    }
-                }
+                // Judged in `SyncOut`, after the colliders' projection.
+                cloth.convergence.stepped(
+                    done.report.relative_error,
+                    done.substeps == 1,
+                    guard.convergence_tolerance,
+                );
                 stats.substeps = done.substeps;
                 cloth.measured = Some(done.measured);
                 if let Some(reason) = done.retried_because {

@@ -120,6 +120,92 @@ impl ConvergenceSums {
     }
 }
 
+/// A step's [`relative_error`](super::StepReport::relative_error) measured
+/// after a collider's projection moved some of its vertices: the error the
+/// projection does not undo.
+///
+/// A cloth resting on a collider is held by forces the implicit-Euler
+/// objective does not contain: the solve falls into the collider and the
+/// projection puts the vertices back. An iterative method stops short of
+/// the exact solve's fall, and [`ConvergenceSums`] counts all of that
+/// shortfall, though the projection would have undone it as well. Here each
+/// vertex's estimated error `e = dt²/m·g` (the gradient `g` at the method's
+/// result, as the iterative methods estimate it) is compared with where the
+/// projection moved the vertex: along the push's direction `n` (depth `d`),
+/// the exact solve's estimated position `x − e` would be projected to the
+/// same place unless it lies outside the solid, so only `max(−e·n − d, 0)` of
+/// that component remains; the component across the push remains whole
+/// (friction, which would hold part of it, is not counted). A vertex the
+/// projection did not move keeps its error whole. Motion and the floor are
+/// as in [`ConvergenceSums`].
+///
+/// Scratch is kept between calls (no allocation once sized).
+#[derive(Clone, Debug, Default)]
+pub struct ContactError {
+    x_tilde: Vec<Vec3A>,
+    terms: Vec<Vec3A>,
+    grad: Vec<Vec3A>,
+}
+
+impl ContactError {
+    /// The relative error of the step from `start` (the state before it,
+    /// velocities undamped) to `solved` (the method's positions), after a
+    /// projection moved them to `projected`. 0 for a cloth without free
+    /// vertices; `None` if the three do not have one entry per vertex of
+    /// `model`.
+    pub fn relative_error(
+        &mut self,
+        model: &ClothModel,
+        start: &ClothState,
+        solved: &[Vec3A],
+        projected: &[Vec3A],
+        params: &StepParams,
+    ) -> Option<f32> {
+        let n = model.vertex_count();
+        if start.len() != n || solved.len() != n || projected.len() != n {
+            return None;
+        }
+        let dt = params.dt as f32;
+        let damping = params.damping;
+        self.x_tilde.clear();
+        self.x_tilde.extend(
+            start
+                .positions
+                .iter()
+                .zip(&start.velocities)
+                .map(|(&x, &v)| x + dt * damping * v),
+        );
+        self.terms
+            .resize(model.topology().springs().len(), Vec3A::ZERO);
+        self.grad.resize(n, Vec3A::ZERO);
+        gradient(
+            model,
+            solved,
+            &self.x_tilde,
+            params,
+            &mut self.terms,
+            &mut self.grad,
+        );
+        let mut sums = ConvergenceSums::default();
+        let moved = solved.iter().zip(projected).zip(&start.positions);
+        for (i, ((&x, &p), &x0)) in moved.enumerate() {
+            if model.pinned()[i] {
+                continue;
+            }
+            let mut e = self.grad[i] * (dt * dt / model.masses()[i]);
+            let push = p - x;
+            let depth = push.length();
+            if depth > 0.0 {
+                let normal = push / depth;
+                let along = e.dot(normal);
+                e += normal * ((-along - depth).max(0.0) - along);
+            }
+            sums.add(e, x - x0);
+        }
+        Some(sums.relative_error(model, params.dt))
+    }
+}
+
 /// The implicit-Euler objective whose minimiser is the next position:
 /// `Σ m/(2dt²)‖x − x̃‖² + Σ_springs ½k(l − L)² − Σ m g·x`, in `f64`.
 /// Its gradient is [`gradient`].

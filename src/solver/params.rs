@@ -216,10 +216,10 @@ pub struct StepReport {
 /// Chosen from the stability map (`docs/report/stability.md`, section
 /// "Convergence"), where it separates the right runs of the iterative
 /// methods from the wrong ones but for the few the map lists by name; it is
-/// set high in that gap, because a cloth resting on a projection sphere
-/// reads just below it at the lab's settings with Chebyshev and projective
-/// dynamics alike: the solve ignores the sphere, which then undoes the
-/// unconverged fall.
+/// set high in that gap. In contact, the plugin measures a step again after
+/// the projection ([`ContactError`](super::ContactError)): the solve
+/// ignores the collider, which then undoes the part of the fall the solve
+/// did not finish.
 pub const CONVERGENCE_TOLERANCE: f32 = 0.25;
 
 /// Checks that `state` has one position and velocity per vertex of `model`.

@@ -419,3 +419,43 @@ fn every_method_steps_to_the_same_bits_at_every_simd_level() {
         }
     }
 }
+
+#[test]
+fn contact_error_counts_only_what_the_projection_does_not_undo() {
+    // The lab cloth without pins, flat and at rest on a floor at its own
+    // height: a method that did not move it at all is a whole step's fall
+    // short of the exact step (x − g·dt²) ...
+    let model = ClothBuilder::lab().with_pins([]).build().unwrap();
+    let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let params = StepParams::LAB;
+    let dt = params.dt as f32;
+    let fall = Vec3A::from(params.gravity) * (dt * dt);
+    let mut measure = ContactError::default();
+    let unmoved = start.positions.clone();
+    let free = measure
+        .relative_error(&model, &start, &unmoved, &unmoved, &params)
+        .unwrap();
+    assert!(free > 1.0, "no projection: {free}");
+    // ... which the floor would undo: the exact step falls into it.
+    let fallen: Vec<Vec3A> = unmoved.iter().map(|&x| x + 0.5 * fall).collect();
+    let on_floor = measure
+        .relative_error(&model, &start, &fallen, &unmoved, &params)
+        .unwrap();
+    assert!(on_floor < 1e-3, "resting on the floor: {on_floor}");
+    // A solid above pushing it down by half the fall: the exact step falls
+    // away from it and half the fall remains.
+    let pushed_down: Vec<Vec3A> = unmoved.iter().map(|&x| x + 0.5 * fall).collect();
+    let under = measure
+        .relative_error(&model, &start, &unmoved, &pushed_down, &params)
+        .unwrap();
+    assert!(
+        (under - 0.5 * free).abs() < 1e-3 * free,
+        "{under} vs {free}"
+    );
+    // Mismatched lengths are refused.
+    assert!(
+        measure
+            .relative_error(&model, &start, &unmoved[1..], &unmoved, &params)
+            .is_none()
+    );
+}

@@ -152,10 +152,13 @@ fn a_moving_sphere_pushes_the_hanging_cloth() {
 fn the_convergence_flag_is_quiet_on_a_cloth_hanging_still_or_resting_on_the_sphere() {
     // The lab cloth at the lab's settings, 10 s hanging and 10 s falling
     // onto the lab's sphere and resting there: no step of a method that
-    // converges there is flagged (Jacobi 32 does not converge at k = 8000,
-    // and says so; the stability map's verdicts, judged over the same
-    // runs, are in `docs/report/stability.md`).
+    // converges there is flagged; Jacobi 32, which lags in the fall, is
+    // flagged only then, not hanging still nor resting on the sphere (the
+    // projection undoes what its solve leaves of the fall into it:
+    // `ContactError`). The stability map's verdicts, judged over the same
+    // runs, are in `docs/report/stability.md`.
     for preset in [
+        "jacobi",
         "chebyshev",
         "chebyshev-auto",
         "pd",
@@ -176,13 +179,60 @@ fn the_convergence_flag_is_quiet_on_a_cloth_hanging_still_or_resting_on_the_sphe
                     Transform::from_xyz(0.0, -4.0, 4.0),
                 ));
             }
-            run_steps(&mut app, 300);
+            run_steps(&mut app, 30);
+            let falling = stats(&app, cloth).unconverged_steps;
+            run_steps(&mut app, 270);
             let s = stats(&app, cloth);
             assert!(s.is_running() && s.steps == 300, "{preset}: {s:?}");
-            assert_eq!(s.unconverged_steps, 0, "{preset}, sphere {sphere}: {s:?}");
+            assert_eq!(
+                s.unconverged_steps, falling,
+                "{preset}, sphere {sphere}: flagged after the fall: {s:?}"
+            );
+            if preset != "jacobi" {
+                assert_eq!(falling, 0, "{preset}, sphere {sphere}: {s:?}");
+            }
             if sphere {
                 assert!(s.contacts > 10, "{preset}: {s:?}");
             }
+        }
+    }
+}
+
+#[test]
+fn the_convergence_flag_still_calls_the_maps_wrong_cells_in_contact() {
+    // The stability map's "Falling onto the sphere" at k = 1e6, dt = 1/30:
+    // Chebyshev and `pd` are wrong there (they fall short of the exact run
+    // and hover), and so they are flagged while they rest on the sphere
+    // too; the exact method is right and is not.
+    for (preset, flagged) in [("chebyshev", true), ("pd", true), ("exact", false)] {
+        let mut app = app();
+        app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 30.0));
+        let cloth = spawn_lab(&mut app, ());
+        app.world_mut()
+            .get_mut::<ClothParams>(cloth)
+            .unwrap()
+            .stiffness = SpringStiffness::uniform(1e6);
+        preset
+            .parse::<AnyMethod>()
+            .unwrap()
+            .insert(&mut app.world_mut().commands().entity(cloth));
+        app.world_mut().spawn((
+            SphereCollider::new(SPHERE_RADIUS),
+            Transform::from_xyz(0.0, -4.0, 4.0),
+        ));
+        run_steps(&mut app, 150);
+        let falling = stats(&app, cloth).unconverged_steps;
+        run_steps(&mut app, 150);
+        let s = stats(&app, cloth);
+        assert!(s.is_running() && s.contacts > 10, "{preset}: {s:?}");
+        let resting = s.unconverged_steps - falling;
+        if flagged {
+            assert!(
+                resting > 100,
+                "{preset}: {resting} of 150 flagged at rest: {s:?}"
+            );
+        } else {
+            assert_eq!(s.unconverged_steps, 0, "{preset}: {s:?}");
         }
     }
 }
