@@ -17,7 +17,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use bevy::math::{Affine3A, Vec3, Vec3A};
 
 use bevy_cloth::collision::self_contact::{
-    IntersectionCheck, SelfCollisionInput, SelfContacts, count_intersections,
+    IntersectionCheck, SelfCollisionInput, SelfContacts, count_intersections, ray_meets,
 };
 use bevy_cloth::collision::{Capsule, Plane, SelfCollision, Shape, Sweep, project_swept};
 use bevy_cloth::methods::{AnyMethod, AnyWorkspace};
@@ -26,6 +26,8 @@ use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
 use bevy_cloth::solver::{StepInput, StepParams, max_stretch};
+
+use crate::scenarios::ended;
 
 /// The thrown ball's speed (m/s).
 pub const BALL_SPEED: f32 = 30.0;
@@ -99,7 +101,7 @@ pub fn folded(cols: usize, layers: usize, seconds: f32) -> ContactCase {
         *p = Vec3A::new(x, y, p.z);
     }
     ContactCase {
-        name: format!("{cols}² folded in {layers}, on the ground"),
+        name: format!("{cols}² folded in {layers}, on the ground, {seconds} s"),
         params: cotton_params(&model),
         start,
         solids: vec![Shape::Plane(Plane {
@@ -303,25 +305,6 @@ impl ContactRun {
 /// more than a tenth has torn.
 pub const TORN: f32 = 0.1;
 
-/// Whether a ray from `from` along `direction` meets a triangle of the
-/// cloth at `x` (Möller–Trumbore, ahead of `from` only).
-fn ray_meets(model: &ClothModel, x: &[Vec3A], from: Vec3A, direction: Vec3A) -> bool {
-    model.topology().triangles().iter().any(|t| {
-        let [a, b, c] = t.map(|i| x[i as usize]);
-        let (e1, e2) = (b - a, c - a);
-        let p = direction.cross(e2);
-        let det = e1.dot(p);
-        if det.abs() < 1e-12 {
-            return false;
-        }
-        let s = (from - a) / det;
-        let u = s.dot(p);
-        let q = s.cross(e1);
-        let v = direction.dot(q);
-        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) > 0.0
-    })
-}
-
 /// Runs `method` through `case`: one step with everything still, then the
 /// thrown collider (if any) moving, checking after every step.
 pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
@@ -367,16 +350,7 @@ pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
             }
         }
     }));
-    if let Err(panic) = result {
-        let text = panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_default();
-        out.failed = Some(format!("panicked: {text}"));
-    } else if out.failed.is_none() && !state.is_finite() {
-        out.failed = Some("non-finite state passed the guard".into());
-    }
+    out.failed = ended(result, out.failed, &state);
     out
 }
 

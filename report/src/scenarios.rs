@@ -463,18 +463,33 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
             }
         }
     }));
-    if let Err(panic) = result {
-        let text = panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_default();
-        run.failed = Some(format!("panicked: {text}"));
-    } else if run.failed.is_none() && !state.is_finite() {
-        run.failed = Some("non-finite state passed the guard".into());
-    }
+    run.failed = ended(result, run.failed, &state);
     run.state = state;
     run
+}
+
+/// Why a run that ended with `result` (the run inside `catch_unwind`) and
+/// `failed` at `state` failed: the panic's text, the failure it gave, or a
+/// non-finite state the guard let through; `None` for a run that did not.
+pub(crate) fn ended(
+    result: std::thread::Result<()>,
+    failed: Option<String>,
+    state: &ClothState,
+) -> Option<String> {
+    match result {
+        Err(panic) => {
+            let text = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            Some(format!("panicked: {text}"))
+        }
+        Ok(()) if failed.is_none() && !state.is_finite() => {
+            Some("non-finite state passed the guard".into())
+        }
+        Ok(()) => failed,
+    }
 }
 
 /// How a run ended; see the [module docs](self).

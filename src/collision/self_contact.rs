@@ -60,7 +60,7 @@ use crate::model::{ClothModel, ClothState};
 mod check;
 mod layers;
 
-pub use check::{IntersectionCheck, count_crossings, count_intersections};
+pub use check::{IntersectionCheck, count_crossings, count_intersections, ray_meets};
 pub use layers::ClothLayers;
 
 /// A cloth that collides with itself: add it to a cloth entity (any

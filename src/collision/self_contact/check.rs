@@ -149,3 +149,24 @@ fn count_through(
     }
     count
 }
+
+/// Whether the ray from `from` along `direction` meets one of `model`'s
+/// triangles at `x`, ahead of `from` (Möller–Trumbore; a ray in a
+/// triangle's plane does not): a check that a solid thrown along `direction` has the cloth still
+/// ahead of it, not passed through it.
+pub fn ray_meets(model: &ClothModel, x: &[Vec3A], from: Vec3A, direction: Vec3A) -> bool {
+    model.topology().triangles().iter().any(|t| {
+        let [a, b, c] = t.map(|i| x[i as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let p = direction.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = (from - a) / det;
+        let u = s.dot(p);
+        let q = s.cross(e1);
+        let v = direction.dot(q);
+        u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) > 0.0
+    })
+}
