@@ -376,7 +376,10 @@
 //! the cloth continues bitwise as if never saved (tested across a new
 //! `App`, through JSON); another cloth's snapshot (other vertex count or
 //! pins, or a non-finite value) is a typed [`StepError`](solver::StepError)
-//! and the cloth keeps its state.
+//! and the cloth keeps its state. A character cloth's [`ClothSkin`] and
+//! [`ClothInertia`] remember the last step too (the skin's pose, the
+//! anchor's transform and motion): [`CharacterSnapshot`] saves and restores
+//! that beside the cloth's snapshot.
 //!
 //! ## Materials
 //! A [`ClothMaterial`](model::ClothMaterial) gives a cloth in physical
@@ -480,8 +483,8 @@ use bevy::ecs::schedule::ScheduleLabel;
 use bevy::prelude::FixedUpdate;
 
 pub use character::{
-    ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin, ClothInertia,
-    ClothSkin, SkinConstraints, SkinPose, Skinning,
+    ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin,
+    CharacterSnapshot, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
 };
 pub use collision::{SelfCollision, SelfCollisionError};
 pub use ecs::{
@@ -508,8 +511,8 @@ pub use solver::xpbd::XpbdSolver;
 pub mod prelude {
     pub use crate::ClothPlugins;
     pub use crate::character::{
-        ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin, ClothInertia,
-        ClothSkin, SkinConstraints, SkinPose, Skinning,
+        ATTRIBUTE_CLOTH_BACKSTOP, ATTRIBUTE_CLOTH_MAX_DISTANCE, CharacterClothPlugin,
+        CharacterSnapshot, ClothInertia, ClothSkin, SkinConstraints, SkinPose, Skinning,
     };
     pub use crate::collision::SelfCollision;
     pub use crate::ecs::{

@@ -48,7 +48,7 @@ pub struct ClothInertia {
     pub teleport_distance: f32,
     /// The anchor's global transform at the last step and its motion over
     /// that step.
-    last: Option<(Affine3A, Affine3A)>,
+    pub(super) last: Option<(Affine3A, Affine3A)>,
 }
 
 impl Default for ClothInertia {

@@ -307,6 +307,8 @@ pub use ecs::{
     Skinning,
 };
 pub use inertia::ClothInertia;
+mod save;
+pub use save::CharacterSnapshot;
 
 #[cfg(test)]
 mod tests;

@@ -312,3 +312,104 @@ fn a_despawned_joint_releases_the_skin_and_its_pins_and_the_cape_falls() {
     // Released, the collar falls with the rest: half a second of free fall.
     assert!(top(&app) < before - 0.5, "{} vs {before}", top(&app));
 }
+
+/// Where the skinned cape's joints are at `step`: walking along +x at
+/// 2 m/s, the hips swinging.
+fn walk_to(app: &mut App, (shoulders, hips): (Entity, Entity), step: u32) {
+    let t = step as f32 / 60.0;
+    let w = app.world_mut();
+    w.get_mut::<Transform>(shoulders).unwrap().translation = Vec3::new(2.0 * t, 0.0, 0.0);
+    let mut hips_at = w.get_mut::<Transform>(hips).unwrap();
+    hips_at.translation = Vec3::new(2.0 * t, 0.0, 0.0);
+    hips_at.rotation = Quat::from_rotation_y(0.3 * (3.0 * t).sin());
+}
+
+#[test]
+fn a_restored_character_cloth_continues_bitwise_in_a_new_app() {
+    // The skinned cape, with inertia measured on the shoulders: saved at
+    // step 40 (the cloth's snapshot and the character's, through JSON),
+    // then run to step 80 in the first app and, restored, in a new one.
+    let scene = || {
+        let (mut app, cloth, shoulders, hips, ..) = skinned_cape_app();
+        app.world_mut().entity_mut(cloth).insert(
+            ClothInertia::default()
+                .with_anchor(shoulders)
+                .with_scales(0.5, 0.25),
+        );
+        (app, cloth, (shoulders, hips))
+    };
+    let (mut first, cloth, joints) = scene();
+    for step in 0..40 {
+        walk_to(&mut first, joints, step);
+        run_steps(&mut first, 1);
+    }
+    let world = first.world();
+    let saved = serde_json::to_string(&world.get::<Cloth>(cloth).unwrap().snapshot()).unwrap();
+    let character = CharacterSnapshot::of(
+        world.get::<ClothSkin>(cloth),
+        world.get::<ClothInertia>(cloth),
+    );
+    assert!(!character.skin_previous.is_empty() && character.inertia_last.is_some());
+    let character = serde_json::to_string(&character).unwrap();
+    for step in 40..80 {
+        walk_to(&mut first, joints, step);
+        run_steps(&mut first, 1);
+    }
+    let expected = positions(&first, cloth);
+
+    // Restored with and without the character's snapshot: only with it does
+    // the cape continue as it would have.
+    for with_character in [true, false] {
+        let (mut second, restored, joints) = scene();
+        second.update();
+        walk_to(&mut second, joints, 39);
+        let snapshot: ClothSnapshot = serde_json::from_str(&saved).unwrap();
+        let mut entity = second.world_mut().entity_mut(restored);
+        entity
+            .get_mut::<Cloth>()
+            .unwrap()
+            .restore_snapshot(&snapshot)
+            .unwrap();
+        if with_character {
+            let character: CharacterSnapshot = serde_json::from_str(&character).unwrap();
+            let (_, skin, inertia) = entity
+                .get_components_mut::<(&Cloth, &mut ClothSkin, &mut ClothInertia)>()
+                .unwrap();
+            character
+                .restore(Some(skin.into_inner()), Some(inertia.into_inner()))
+                .unwrap();
+        }
+        for step in 40..80 {
+            walk_to(&mut second, joints, step);
+            run_steps(&mut second, 1);
+        }
+        let got = positions(&second, restored);
+        if with_character {
+            assert_eq!(got, expected);
+        } else {
+            assert_ne!(got, expected);
+        }
+        assert!(stats(&second, restored).is_running());
+    }
+}
+
+#[test]
+fn a_character_snapshot_of_another_cape_is_refused_and_changes_nothing() {
+    let (mut app, cloth, ..) = skinned_cape_app();
+    run_steps(&mut app, 2);
+    let mut entity = app.world_mut().entity_mut(cloth);
+    let mut skin = entity.get_mut::<ClothSkin>().unwrap();
+    let before = CharacterSnapshot::of(Some(&skin), None);
+    let short = CharacterSnapshot {
+        skin_previous: vec![[0.0; 3]; 3],
+        inertia_last: None,
+    };
+    assert!(matches!(
+        short.restore(Some(&mut skin), None),
+        Err(SkinError::Length { got: 3, .. })
+    ));
+    let mut nan = before.clone();
+    nan.skin_previous[0][1] = f32::NAN;
+    assert_eq!(nan.restore(Some(&mut skin), None), Err(SkinError::Pose));
+    assert_eq!(CharacterSnapshot::of(Some(&skin), None), before);
+}
