@@ -59,9 +59,11 @@ use crate::model::{ClothModel, ClothState};
 
 mod check;
 mod layers;
+mod substeps;
 
 pub use check::{IntersectionCheck, count_crossings, count_intersections, ray_meets};
 pub use layers::ClothLayers;
+pub use substeps::SUBSTEP_SKIN;
 
 /// A cloth that collides with itself: add it to a cloth entity (any
 /// method). A cloth without it pays nothing.
@@ -201,6 +203,8 @@ pub struct SelfContacts {
     after_step: (Vec<Vec3A>, Vec<Vec3A>),
     /// The pair list kept from step to step, if any.
     kept: Kept,
+    /// The step's pairs that can touch within the next substeps.
+    active: substeps::Active,
 }
 
 /// How far beyond the thickness, as a share of it, the pairs of a cloth
@@ -394,6 +398,7 @@ impl SelfContacts {
         reuse: bool,
     ) {
         let (thickness, friction) = (sc.setting.thickness, sc.setting.friction);
+        self.active.reset(thickness);
         let n = model.vertex_count().min(x.len()).min(v.len());
         let pinned = model.pinned();
         let topology = model.topology();
@@ -653,83 +658,102 @@ impl SelfContacts {
         start: impl Fn(usize) -> Vec3A,
         progress: f32,
     ) -> u32 {
-        let own = self.own;
-        self.resolve_weighted(x, start, progress, |i| {
-            if i >= own {
-                self.others[i - own].weight
-            } else {
-                inverse_mass(model, i)
-            }
+        self.resolve_weighted(self.pairs.iter(), x, start, progress, |i| {
+            self.weight(model, i)
         })
     }
 
-    /// [`resolve`](Self::resolve) with each vertex's inverse mass from
-    /// `weight`.
-    fn resolve_weighted(
+    /// A vertex's inverse mass: the cloth's own, or another cloth's.
+    fn weight(&self, model: &ClothModel, i: usize) -> f32 {
+        if i >= self.own {
+            self.others[i - self.own].weight
+        } else {
+            inverse_mass(model, i)
+        }
+    }
+
+    /// [`resolve`](Self::resolve) over `pairs` (some of the step's), with
+    /// each vertex's inverse mass from `weight`.
+    fn resolve_weighted<'p>(
         &self,
+        pairs: impl Iterator<Item = &'p Pair>,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
         progress: f32,
         weight: impl Fn(usize) -> f32,
     ) -> u32 {
-        let own = self.own;
         let mut touching = 0;
-        for p in &self.pairs {
-            let (a, b) = (p.a as usize, p.b as usize);
-            let Some(&xa) = x.get(a) else {
-                continue;
-            };
-            let xb = if b < own {
-                match x.get(b) {
-                    Some(&xb) => xb,
-                    None => continue,
-                }
-            } else {
-                self.others[b - own].position
-            };
-            let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
-            let d = xb - xa;
-            let d2 = d.length_squared();
-            if d2 >= min * min {
-                continue;
-            }
-            // The other cloths' vertices stand still through the step.
-            let start_b = if b < own { start(b) } else { xb };
-            let (wa, wb) = (weight(a), weight(b));
-            let w = wa + wb;
-            if w <= 0.0 {
-                continue;
-            }
-            let dist = d2.sqrt();
-            // Two vertices on the same point: apart along where they came from.
-            let normal = if dist > 1e-6 * min {
-                d / dist
-            } else {
-                match (start_b - start(a)).try_normalize() {
-                    Some(n) => n,
-                    None => continue,
-                }
-            };
-            touching += 1;
-            let depth = min - dist;
-            let (sa, sb) = (wa / w, wb / w);
-            let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
-            if p.friction > 0.0 {
-                let moved = (xb - start_b) - (xa - start(a));
-                let tangential = moved - moved.dot(normal) * normal;
-                let length = tangential.length();
-                if length > 0.0 {
-                    let cut = tangential * ((p.friction * depth).min(length) / length);
-                    xa += cut * sa;
-                    xb -= cut * sb;
-                }
-            }
-            x[a] = xa;
-            if b < own {
-                x[b] = xb;
-            }
+        for p in pairs {
+            touching += u32::from(self.resolve_pair(p, x, &start, progress, &weight));
         }
         touching
+    }
+
+    /// One pair of [`resolve_weighted`](Self::resolve_weighted): whether it
+    /// was touching (and was pushed apart).
+    #[inline]
+    fn resolve_pair(
+        &self,
+        p: &Pair,
+        x: &mut [Vec3A],
+        start: &impl Fn(usize) -> Vec3A,
+        progress: f32,
+        weight: &impl Fn(usize) -> f32,
+    ) -> bool {
+        let own = self.own;
+        let (a, b) = (p.a as usize, p.b as usize);
+        let Some(&xa) = x.get(a) else {
+            return false;
+        };
+        let xb = if b < own {
+            match x.get(b) {
+                Some(&xb) => xb,
+                None => return false,
+            }
+        } else {
+            self.others[b - own].position
+        };
+        let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
+        let d = xb - xa;
+        let d2 = d.length_squared();
+        if d2 >= min * min {
+            return false;
+        }
+        // The other cloths' vertices stand still through the step.
+        let start_b = if b < own { start(b) } else { xb };
+        let (wa, wb) = (weight(a), weight(b));
+        let w = wa + wb;
+        if w <= 0.0 {
+            return false;
+        }
+        let dist = d2.sqrt();
+        // Two vertices on the same point: apart along where they came from.
+        let normal = if dist > 1e-6 * min {
+            d / dist
+        } else {
+            match (start_b - start(a)).try_normalize() {
+                Some(n) => n,
+                None => return false,
+            }
+        };
+        let depth = min - dist;
+        let (sa, sb) = (wa / w, wb / w);
+        let (mut xa, mut xb) = (xa - normal * (depth * sa), xb + normal * (depth * sb));
+        if p.friction > 0.0 {
+            let moved = (xb - start_b) - (xa - start(a));
+            let tangential = moved - moved.dot(normal) * normal;
+            let length = tangential.length();
+            if length > 0.0 {
+                let cut = tangential * ((p.friction * depth).min(length) / length);
+                xa += cut * sa;
+                xb -= cut * sb;
+            }
+        }
+        x[a] = xa;
+        if b < own {
+            x[b] = xb;
+        }
+        true
     }
 }
 

@@ -102,7 +102,13 @@ impl ClothLayers {
         contacts.others.clear();
         let mut touching = 0;
         for pass in 0..AFTER_STEP_PASSES {
-            let now = contacts.resolve_weighted(x, |i| start[i], 1.0, |i| weight[i]);
+            let now = contacts.resolve_weighted(
+                contacts.pairs.iter(),
+                x,
+                |i| start[i],
+                1.0,
+                |i| weight[i],
+            );
             if pass == 0 {
                 touching = now;
             }

@@ -530,7 +530,9 @@ impl Method for XpbdSolver {
             sweep(params.simd, springs, x);
             if self_collision.is_some() {
                 let progress = substep as f32 / substeps as f32;
-                self_held = ws.self_contacts.resolve(model, x, |i| prev[i][0], progress);
+                self_held = ws
+                    .self_contacts
+                    .resolve_substep(model, x, |i| prev[i][0], progress);
             }
             // Spheres, capsules and boxes push the cloth's edges too, here
             // where the springs answer in the next sweep (after the step, a

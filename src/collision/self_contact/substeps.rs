@@ -1,0 +1,127 @@
+//! The step's pairs that can touch within the next substeps: a method that
+//! resolves the same pairs in each of many substeps (`stiff`) passes over
+//! those only, until some vertex has moved far enough for another pair to
+//! reach its least distance (a Verlet list within the step).
+
+use bevy::math::Vec3A;
+
+use super::SelfContacts;
+use crate::model::ClothModel;
+
+/// How far beyond its least distance, as a share of the thickness, a pair
+/// counts as able to touch in [`SelfContacts::resolve_substep`]: the list is
+/// made again once some vertex has moved half this far since it was made.
+pub const SUBSTEP_SKIN: f32 = 0.25;
+
+/// The pairs of [`SelfContacts::resolve_substep`].
+#[derive(Clone, Debug, Default)]
+pub(super) struct Active {
+    /// Indices of the step's pairs that can touch.
+    pairs: Vec<u32>,
+    /// The cloth's vertices when `pairs` was made (empty: to be made).
+    at: Vec<Vec3A>,
+    /// How far beyond its least distance a pair is kept.
+    skin: f32,
+}
+
+impl Active {
+    /// Forgets the list (the step's pairs are found anew), for a
+    /// self-collision of `thickness`.
+    pub(super) fn reset(&mut self, thickness: f32) {
+        self.at.clear();
+        self.skin = SUBSTEP_SKIN * thickness;
+    }
+}
+
+impl SelfContacts {
+    /// [`resolve`](Self::resolve) for a method that resolves the step's
+    /// pairs in each of many substeps: the same result, bit for bit, from a
+    /// pass over the pairs that can touch. A pair further apart than its
+    /// least distance plus [`SUBSTEP_SKIN`] of the thickness cannot touch
+    /// while neither of its vertices has moved half that far, and the list
+    /// is made again as soon as any of the cloth's vertices has (the other
+    /// cloths' stand still through the step). A push in the pass that moves
+    /// a vertex that far goes on over every pair after it, in order, as
+    /// `resolve` does.
+    pub fn resolve_substep(
+        &mut self,
+        model: &ClothModel,
+        x: &mut [Vec3A],
+        start: impl Fn(usize) -> Vec3A,
+        progress: f32,
+    ) -> u32 {
+        self.refresh_active(x);
+        let weight = |i| self.weight(model, i);
+        let (active, at) = (&self.active.pairs, &self.active.at);
+        let limit = 0.49 * self.active.skin;
+        let far = |x: &[Vec3A], i: usize| {
+            at.get(i)
+                .is_some_and(|&at| x[i].distance_squared(at) > limit * limit)
+        };
+        let mut touching = 0;
+        let mut rest = None;
+        for &k in active {
+            let p = &self.pairs[k as usize];
+            if self.resolve_pair(p, x, &start, progress, &weight) {
+                touching += 1;
+                if far(x, p.a as usize) || far(x, p.b as usize) {
+                    rest = Some(k as usize + 1);
+                    break;
+                }
+            }
+        }
+        if let Some(from) = rest {
+            touching +=
+                self.resolve_weighted(self.pairs[from..].iter(), x, start, progress, weight);
+            // A vertex moved beyond the list's reach.
+            self.active.at.clear();
+        }
+        touching
+    }
+
+    /// How many pairs [`resolve_substep`](Self::resolve_substep) last
+    /// passed over.
+    #[cfg(test)]
+    pub(crate) fn active_pairs(&self) -> usize {
+        self.active.pairs.len()
+    }
+
+    /// Makes the list of pairs that can touch again if it is gone or some
+    /// vertex has moved half the skin since it was made.
+    fn refresh_active(&mut self, x: &[Vec3A]) {
+        let own = self.own.min(x.len());
+        let active = &mut self.active;
+        // Just under half: a pair kept out at `min + skin` is still at least
+        // `min` apart after both ends moved that far, rounding included.
+        let limit = 0.49 * active.skin;
+        let still = active.at.len() == own
+            && x[..own]
+                .iter()
+                .zip(&active.at)
+                .all(|(x, at)| x.distance_squared(*at) <= limit * limit);
+        if still {
+            return;
+        }
+        active.at.clear();
+        active.at.extend_from_slice(&x[..own]);
+        active.pairs.clear();
+        for (k, p) in self.pairs.iter().enumerate() {
+            let (a, b) = (p.a as usize, p.b as usize);
+            let Some(&xa) = x.get(a) else {
+                continue;
+            };
+            let xb = if b < self.own {
+                match x.get(b) {
+                    Some(&xb) => xb,
+                    None => continue,
+                }
+            } else {
+                self.others[b - self.own].position
+            };
+            let reach = p.min + active.skin;
+            if xa.distance_squared(xb) < reach * reach {
+                active.pairs.push(k as u32);
+            }
+        }
+    }
+}
