@@ -101,7 +101,7 @@ pub fn folded(cols: usize, layers: usize, seconds: f32) -> ContactCase {
         *p = Vec3A::new(x, y, p.z);
     }
     ContactCase {
-        name: format!("{cols}² folded in {layers}, on the ground, {seconds} s"),
+        name: format!("{cols}² folded in {layers}, on the ground"),
         params: cotton_params(&model),
         start,
         solids: vec![Shape::Plane(Plane {
