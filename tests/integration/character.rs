@@ -87,11 +87,7 @@ fn a_skinned_cape_follows_its_joints_pins_on_the_skin_within_its_max_distance() 
     // The character walks along +x at 2 m/s and its hips swing.
     for step in 0..120 {
         let t = step as f32 / 60.0;
-        let w = app.world_mut();
-        w.get_mut::<Transform>(shoulders).unwrap().translation = Vec3::new(2.0 * t, 0.0, 0.0);
-        let mut hips_at = w.get_mut::<Transform>(hips).unwrap();
-        hips_at.translation = Vec3::new(2.0 * t, 0.0, 0.0);
-        hips_at.rotation = Quat::from_rotation_y(0.3 * (3.0 * t).sin());
+        walk_to(&mut app, (shoulders, hips), step);
         run_steps(&mut app, 1);
         let c = app.world().get::<Cloth>(cloth).unwrap();
         let skin = app.world().get::<ClothSkin>(cloth).unwrap();
