@@ -19,7 +19,7 @@
 //! inside it as the crate's own colliders do: projected in `stiff`'s
 //! substeps and terms of `pd`'s and `newton`'s objectives, where stiff
 //! cloth keeps its length over them instead of being strained by the
-//! projection after the step (in `stiff`'s substeps they push the cloth's
+//! projection after the step (in `stiff`'s substeps boxes push the cloth's
 //! edges too, not only its vertices). After the step they are projected as
 //! the crate's shapes are
 //! ([`collision::project_swept`](crate::collision::project_swept)): swept by

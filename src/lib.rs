@@ -144,9 +144,10 @@
 //!   from where it was at the step's start; one that went through (a ball
 //!   thrown through the cloth, a vertex falling through a thin box) is put
 //!   back where it entered. `stiff` also moves the colliders through its
-//!   substeps ([`solver::StepInput::contact_motion`]) and lets spheres,
-//!   capsules and boxes push the cloth's edges there, not only its
-//!   vertices, so cloth drapes over a box's edge instead of cutting it.
+//!   substeps ([`solver::StepInput::contact_motion`]) and lets boxes push
+//!   the cloth's edges there, not only its vertices, so cloth drapes over
+//!   a box's edge instead of cutting it (a smooth solid is cut only by
+//!   chords between vertices on its surface, as the reference cuts it).
 //!
 //! ## Pins
 //! - Pins given to [`ClothBuilder::with_pins`](model::ClothBuilder::with_pins)

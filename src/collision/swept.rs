@@ -29,8 +29,14 @@
 //!   inverse masses, as position-based dynamics moves a point–edge
 //!   contact), in a few passes. The push is inelastic: the ends stop moving
 //!   into the solid but are not given the push as a velocity (a taut edge
-//!   over a box's edge is pushed out every step). Planes need no edge test
-//!   (a segment is deepest at an end).
+//!   over a box's edge is pushed out every step). Only boxes have edges
+//!   to test: a plane's segment is deepest at an end, and a smooth solid
+//!   (sphere, capsule) is cut by a segment whose ends are outside no
+//!   deeper than by a chord of its own length (`L²/8r` for `L` ≪ `r`),
+//!   which is how a cloth of that spacing wraps it, vertex on the
+//!   surface, and how the reference lets it (pushing those chords out held
+//!   the lab's coarse cloth off the sphere and strained it, see
+//!   [`has_edges`]).
 //!
 //! Sweeps follow a solid's translation only (a spinning box or a swinging
 //! capsule sweeps by its centre's motion), and a solid that moved further
@@ -299,7 +305,7 @@ pub fn project_swept(
                 super::friction(x, v, normal, depth * inv_dt, shape.friction(), dt);
             }
         }
-        if sweep.edges && !matches!(shape, Shape::Plane(_)) {
+        if sweep.edges && has_edges(&shape) {
             count += project_edges(model, state, &shape);
         }
     }
@@ -365,7 +371,7 @@ pub(crate) fn edge_candidates(
     out: &mut Vec<u32>,
 ) {
     out.clear();
-    if matches!(shape, Shape::Plane(_)) || !margin.is_finite() {
+    if !has_edges(shape) || !margin.is_finite() {
         return;
     }
     let grown = shape.grown(margin);
@@ -379,6 +385,18 @@ pub(crate) fn edge_candidates(
             out.push(k as u32);
         }
     }
+}
+
+/// Whether `shape` has edges or corners that can cut between the cloth's
+/// vertices: boxes only. A segment whose ends lie outside a plane, a sphere
+/// or a capsule cuts it no deeper than a chord of the same length, which is
+/// what a cloth of that spacing wrapped around it does with every vertex on
+/// the surface. Pushing those chords out held the lab's coarse cloth (0.5 m
+/// between vertices over a 2.7 m sphere) a centimetre off the sphere, away
+/// from the reference, strained the stiff cloth draped there and overstretched
+/// the soft one falling onto it (the stability map's contact scenes).
+pub(crate) fn has_edges(shape: &Shape) -> bool {
+    matches!(shape, Shape::Cuboid(_))
 }
 
 /// A sphere around a solid that is not a plane: centre and radius.
@@ -398,7 +416,7 @@ pub(crate) fn edge_pass_over(
     shape: &Shape,
     edges: impl IntoIterator<Item = u32>,
 ) -> usize {
-    if matches!(shape, Shape::Plane(_)) {
+    if !has_edges(shape) {
         return 0;
     }
     // A sphere around the solid: an edge whose end is further from its

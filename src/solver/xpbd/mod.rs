@@ -103,12 +103,13 @@ pub struct XpbdSolver {
     /// from every collider, and cloth with `κ ≤ 1` (the lab's, and
     /// cotton at 16² and coarser), pays nothing.
     pub max_refinement: u32,
-    /// Whether spheres, capsules and boxes push the cloth's edges in every
-    /// substep, not only its vertices (see
-    /// [`collision::swept`](crate::collision::swept)): cloth drapes over a
-    /// box's edge instead of cutting it, and a ball cannot pass between
-    /// vertices. It costs a test of each edge near a solid in every
-    /// substep (a 32² sheet resting on a box: about four times the step).
+    /// Whether boxes push the cloth's edges in every substep, not only its
+    /// vertices (see [`collision::swept`](crate::collision::swept)): cloth
+    /// drapes over a box's edge instead of cutting it. Smooth solids
+    /// (spheres, capsules, planes) push vertices only: a chord between two
+    /// vertices on their surface is how cloth of that spacing wraps them.
+    /// It costs a test of each edge near a box in every substep (a 32²
+    /// sheet resting on a box: about four times the step).
     /// Default on (also for a saved cloth from before it existed).
     #[reflect(default = "on")]
     pub collider_edges: bool,
@@ -344,8 +345,8 @@ impl Method for XpbdSolver {
         ws.bounds.clear();
         ws.bounds.extend(ws.solids.iter().map(bound));
         let contacts = &ws.solids[..];
-        // The projection's solids push the cloth's edges too; the penalty
-        // ones (last) its vertices only, as their force would.
+        // The projection's boxes push the cloth's edges too; the penalty
+        // solids (last) its vertices only, as their force would.
         let projected = if self.collider_edges {
             ws.solids.len() - spheres.len()
         } else {
@@ -534,7 +535,7 @@ impl Method for XpbdSolver {
                     .self_contacts
                     .resolve_substep(model, x, |i| prev[i][0], progress);
             }
-            // Spheres, capsules and boxes push the cloth's edges too, here
+            // Boxes push the cloth's edges too, here
             // where the springs answer in the next sweep (after the step, a
             // taut edge over a box's edge would be pushed out and pulled
             // back in every step).

@@ -209,9 +209,7 @@ fn contacts_are_projected_inside_every_substep() {
         },
     );
     assert_eq!(inside, 0);
-    // It touches both: some vertex rests on each (within 2 cm: the
-    // sphere pushes the cloth's edges too, and an edge of 0.5 m over a
-    // sphere of 2.7 m holds its ends 1.2 cm off it).
+    // It touches both: some vertex rests on each (within 2 cm).
     let touching = |shape: &Shape| {
         state
             .positions
