@@ -30,7 +30,7 @@ use bevy_cloth::methods::{AnyMethod, AnyWorkspace, PRESETS};
 use bevy_cloth::model::{ClothBuilder, ClothModel, ClothState};
 use bevy_cloth::solver::exact::ExactSolver;
 use bevy_cloth::solver::guard::{
-    DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, GuardedStep, guarded_step,
+    DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
 use bevy_cloth::solver::linear::SpringJacobian;
 use bevy_cloth::solver::{
@@ -414,14 +414,12 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
             );
             // A step that would be flagged is measured again after the
             // projection, as the plugin measures it (`ContactError`).
-            let flagged = |done: &GuardedStep| {
-                done.report
-                    .relative_error
-                    .is_some_and(|e| e > CONVERGENCE_TOLERANCE)
-                    && done.substeps == 1
-            };
-            let remeasure =
-                matches!(&r, Ok(done) if flagged(done)) && !scenario.contacts.is_empty();
+            let remeasure = !scenario.contacts.is_empty()
+                && matches!(&r, Ok(done) if ContactError::applies(
+                    done.report.relative_error,
+                    done.substeps == 1,
+                    CONVERGENCE_TOLERANCE,
+                ));
             if remeasure {
                 solved.clone_from(&state.positions);
             }

@@ -121,7 +121,7 @@ impl PendingConvergence {
     /// Records a step's own measure.
     pub(crate) fn stepped(&mut self, error: Option<f32>, single: bool, tolerance: f32) {
         self.step = Some(error);
-        self.remeasure = single && error.is_some_and(|e| e > tolerance);
+        self.remeasure = crate::solver::ContactError::applies(error, single, tolerance);
         self.kept = false;
     }
 

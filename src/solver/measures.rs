@@ -148,6 +148,15 @@ pub struct ContactError {
 }
 
 impl ContactError {
+    /// Whether a step is measured again after the projection: one step of
+    /// the whole `dt` (`single`: no halvings by the guard) whose own
+    /// relative error exceeds `tolerance`. A step within it is not flagged
+    /// whatever the projection does, and a halved step's error is not
+    /// measured against one projection.
+    pub fn applies(error: Option<f32>, single: bool, tolerance: f32) -> bool {
+        single && error.is_some_and(|e| e > tolerance)
+    }
+
     /// The relative error of the step from `start` (the state before it,
     /// velocities undamped) to `solved` (the method's positions), after a
     /// projection moved them to `projected`. 0 for a cloth without free
