@@ -36,7 +36,7 @@
 //!   which is how a cloth of that spacing wraps it, vertex on the
 //!   surface, and how the reference lets it (pushing those chords out held
 //!   the lab's coarse cloth off the sphere and strained it, see
-//!   [`has_edges`]).
+//!   [`has_edges`]); `stiff` pushes them for a cloth with self-collision.
 //!
 //! Sweeps follow a solid's translation only (a spinning box or a swinging
 //! capsule sweeps by its centre's motion), and a solid that moved further
@@ -371,7 +371,7 @@ pub(crate) fn edge_candidates(
     out: &mut Vec<u32>,
 ) {
     out.clear();
-    if !has_edges(shape) || !margin.is_finite() {
+    if matches!(shape, Shape::Plane(_)) || !margin.is_finite() {
         return;
     }
     let grown = shape.grown(margin);
@@ -391,10 +391,12 @@ pub(crate) fn edge_candidates(
 /// vertices: boxes only. A segment whose ends lie outside a plane, a sphere
 /// or a capsule cuts it no deeper than a chord of the same length, which is
 /// what a cloth of that spacing wrapped around it does with every vertex on
-/// the surface. Pushing those chords out held the lab's coarse cloth (0.5 m
-/// between vertices over a 2.7 m sphere) a centimetre off the sphere, away
-/// from the reference, strained the stiff cloth draped there and overstretched
-/// the soft one falling onto it (the stability map's contact scenes).
+/// the surface (and what the stability map's reference does). Pushing those
+/// chords out held the lab's coarse cloth (0.5 m between vertices over a
+/// 2.7 m sphere) a centimetre off the sphere, away from the reference,
+/// strained the stiff cloth draped there and overstretched the soft one
+/// falling onto it. `stiff` still pushes them for a cloth with
+/// self-collision (see [`XpbdSolver::collider_edges`](crate::solver::XpbdSolver::collider_edges)).
 pub(crate) fn has_edges(shape: &Shape) -> bool {
     matches!(shape, Shape::Cuboid(_))
 }
@@ -416,7 +418,7 @@ pub(crate) fn edge_pass_over(
     shape: &Shape,
     edges: impl IntoIterator<Item = u32>,
 ) -> usize {
-    if !has_edges(shape) {
+    if matches!(shape, Shape::Plane(_)) {
         return 0;
     }
     // A sphere around the solid: an edge whose end is further from its

@@ -60,7 +60,7 @@ use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::collision::self_contact::SelfContacts;
-use crate::collision::swept::{edge_candidates, edge_pass_over};
+use crate::collision::swept::{edge_candidates, edge_pass_over, has_edges};
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
@@ -105,11 +105,16 @@ pub struct XpbdSolver {
     pub max_refinement: u32,
     /// Whether boxes push the cloth's edges in every substep, not only its
     /// vertices (see [`collision::swept`](crate::collision::swept)): cloth
-    /// drapes over a box's edge instead of cutting it. Smooth solids
-    /// (spheres, capsules, planes) push vertices only: a chord between two
-    /// vertices on their surface is how cloth of that spacing wraps them.
-    /// It costs a test of each edge near a box in every substep (a 32²
-    /// sheet resting on a box: about four times the step).
+    /// drapes over a box's edge instead of cutting it. Spheres and capsules
+    /// push the edges of a cloth with self-collision only: without, a chord
+    /// between two vertices on their surface is how cloth of that spacing
+    /// wraps them (and how the stability map's reference does), where
+    /// pushing it out holds a coarse cloth off the solid and strains it;
+    /// with, the layers folded on the solid keep their order only with the
+    /// pushes (the drape scene's sheets on the ball: edges through a sheet
+    /// without them, none with them). It costs a test of each edge near the solid
+    /// in every substep (a 32² sheet resting on a box: about four times the
+    /// step).
     /// Default on (also for a saved cloth from before it existed).
     #[reflect(default = "on")]
     pub collider_edges: bool,
@@ -345,8 +350,9 @@ impl Method for XpbdSolver {
         ws.bounds.clear();
         ws.bounds.extend(ws.solids.iter().map(bound));
         let contacts = &ws.solids[..];
-        // The projection's boxes push the cloth's edges too; the penalty
-        // solids (last) its vertices only, as their force would.
+        // The projection's boxes (and, with self-collision, its smooth
+        // solids) push the cloth's edges too; the penalty solids (last) its
+        // vertices only, as their force would.
         let projected = if self.collider_edges {
             ws.solids.len() - spheres.len()
         } else {
@@ -367,7 +373,11 @@ impl Method for XpbdSolver {
             .zip(&ws.motion)
             .zip(&mut ws.edges)
         {
-            edge_candidates(model, x, solid, reach + motion.length() + 1e-3, edges);
+            if has_edges(solid) || self_collision.is_some() {
+                edge_candidates(model, x, solid, reach + motion.length() + 1e-3, edges);
+            } else {
+                edges.clear();
+            }
         }
         // Each pass over the vertices ends one substep (contacts, velocity)
         // and begins the next (prediction), so each substep reads them once.
@@ -535,7 +545,8 @@ impl Method for XpbdSolver {
                     .self_contacts
                     .resolve_substep(model, x, |i| prev[i][0], progress);
             }
-            // Boxes push the cloth's edges too, here
+            // Boxes (and smooth solids, with self-collision) push the
+            // cloth's edges too, here
             // where the springs answer in the next sweep (after the step, a
             // taut edge over a box's edge would be pushed out and pulled
             // back in every step).
