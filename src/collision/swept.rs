@@ -35,8 +35,9 @@
 //!   deeper than by a chord of its own length (`L²/8r` for `L` ≪ `r`),
 //!   which is how a cloth of that spacing wraps it, vertex on the
 //!   surface, and how the reference lets it (pushing those chords out held
-//!   the lab's coarse cloth off the sphere and strained it, see
-//!   [`has_edges`]); `stiff` pushes them for a cloth with self-collision.
+//!   the lab's coarse cloth off the sphere and strained it); `stiff`
+//!   pushes them for a cloth with self-collision
+//!   ([`XpbdSolver::collider_edges`](crate::solver::xpbd::XpbdSolver::collider_edges)).
 //!
 //! Sweeps follow a solid's translation only (a spinning box or a swinging
 //! capsule sweeps by its centre's motion), and a solid that moved further
@@ -396,7 +397,7 @@ pub(crate) fn edge_candidates(
 /// 2.7 m sphere) a centimetre off the sphere, away from the reference,
 /// strained the stiff cloth draped there and overstretched the soft one
 /// falling onto it. `stiff` still pushes them for a cloth with
-/// self-collision (see [`XpbdSolver::collider_edges`](crate::solver::XpbdSolver::collider_edges)).
+/// self-collision (see [`XpbdSolver::collider_edges`](crate::solver::xpbd::XpbdSolver::collider_edges)).
 pub(crate) fn has_edges(shape: &Shape) -> bool {
     matches!(shape, Shape::Cuboid(_))
 }

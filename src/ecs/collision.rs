@@ -330,7 +330,7 @@ pub(crate) fn project_running_cloths(
 /// ([`project_swept`](crate::collision::project_swept), which also sweeps
 /// a moving collider so that a fast one does not pass through), for every
 /// method; counted in [`ClothStats::contacts`]. `stiff` also projects it in
-/// its substeps (where boxes push the cloth's edges too). Vertices are kept `thickness` plus the cloth's
+/// its substeps. Vertices are kept `thickness` plus the cloth's
 /// [`ClothParams::particle_radius`] above the surface.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Debug, PartialEq, Default)]
