@@ -289,33 +289,9 @@ impl Method for XpbdSolver {
         let damping = params.damping.powf(1.0 / substeps as f32);
         let gravity = Vec3A::from(params.gravity);
         let pinned = model.pinned();
-        let masses = model.masses();
 
         ws.colouring.update(model);
-        let springs = model.topology().springs();
-        let inv_h2 = f64::from(inv_h) * f64::from(inv_h);
-        let weight = |i: u32| {
-            if pinned[i as usize] {
-                0.0
-            } else {
-                1.0 / masses[i as usize]
-            }
-        };
-        ws.links.clear();
-        for &e in &ws.colouring.order {
-            let s = springs[e as usize];
-            let (wa, wb) = (weight(s.a), weight(s.b));
-            let compliance = (inv_h2 / f64::from(k[s.kind as usize])) as f32;
-            let total = wa + wb + compliance;
-            let shares = if total > 0.0 {
-                [wa / total, wb / total]
-            } else {
-                [0.0, 0.0]
-            };
-            ws.links.ends.push([s.a, s.b]);
-            ws.links.rest.push(s.rest_length);
-            ws.links.shares.push(shares);
-        }
+        ws.links.update(model, &ws.colouring, k, h);
         let ClothState {
             positions: x,
             velocities: v,
@@ -704,7 +680,8 @@ fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) -
 pub struct XpbdWorkspace {
     /// The springs in colour order (taken once per topology).
     colouring: Colouring,
-    /// Per spring in colour order: ends, rest length and shares (per step).
+    /// Per spring in colour order: ends, rest length and shares (taken again
+    /// when the cloth, its stiffness or the substep change).
     links: Links,
     /// Per vertex, its position at the substep's start and its predicted
     /// position.

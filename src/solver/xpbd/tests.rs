@@ -283,6 +283,49 @@ fn friction_holds_a_cloth_on_a_slope_that_a_frictionless_one_slides_down() {
 }
 
 #[test]
+fn a_kept_workspace_follows_the_cloth_its_stiffness_and_its_substep() {
+    // The links (each spring's shares) are kept from step to step: a
+    // change of stiffness, step, masses or pins between two steps gives
+    // the same bits as a fresh workspace.
+    let mut model = lab();
+    let params = stiff(1e5, 1.0 / 60.0);
+    let mut kept = XpbdWorkspace::default();
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let method = XpbdSolver::STIFF;
+    method
+        .step(&model, &mut state, &params, &[], &mut kept)
+        .unwrap();
+    let heavier: Vec<f32> = (0..model.vertex_count())
+        .map(|i| 1.0 + (i % 7) as f32 * 0.5)
+        .collect();
+    type Change<'a> = &'a dyn Fn(&mut ClothModel, &mut StepParams);
+    let changes: [Change; 4] = [
+        &|_, p| p.stiffness = SpringStiffness::uniform(3e6),
+        &|_, p| p.dt = 1.0 / 30.0,
+        &|m, _| m.set_masses(heavier.clone()).unwrap(),
+        &|m, _| m.set_pins(vec![0, 20, 220]).unwrap(),
+    ];
+    let mut params = params;
+    for change in changes {
+        change(&mut model, &mut params);
+        let mut fresh_state = state.clone();
+        method
+            .step(&model, &mut state, &params, &[], &mut kept)
+            .unwrap();
+        method
+            .step(
+                &model,
+                &mut fresh_state,
+                &params,
+                &[],
+                &mut XpbdWorkspace::default(),
+            )
+            .unwrap();
+        assert_eq!(state, fresh_state);
+    }
+}
+
+#[test]
 fn runs_are_bitwise_repeatable_and_zero_substeps_are_refused() {
     let model = lab();
     let params = stiff(1e7, 1.0 / 60.0);
