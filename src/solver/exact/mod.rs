@@ -458,7 +458,7 @@ pub struct ExactWorkspace {
 /// The speed below which friction holds a vertex, per metre of cloth size
 /// (IPC's `ε_v`, Li et al. 2020): a cloth in static contact creeps at most
 /// a thousandth of its size per second.
-const STICK_SPEED: f64 = 1e-3;
+pub(crate) const STICK_SPEED: f64 = 1e-3;
 
 /// One vertex's lagged Coulomb friction against a collider, a term of the
 /// step's objective (Li et al. 2020, "Incremental Potential Contact",

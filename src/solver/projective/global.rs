@@ -6,6 +6,7 @@ use bevy::math::{DVec3, Vec3A};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::early_stop::ErrorSlots;
+use super::friction::{Friction, term_at};
 use super::multigrid::{FineStencil, Multigrid};
 use super::{FactorKey, PINNED, ProjectiveWorkspace};
 use crate::collision::PenaltySphere;
@@ -266,6 +267,8 @@ impl ProjectiveWorkspace {
             cholesky,
             rhs,
             track,
+            friction,
+            friction_at,
             ..
         } = self;
         let parts = RhsParts {
@@ -277,6 +280,7 @@ impl ProjectiveWorkspace {
             adjacency,
             sums,
             spheres,
+            friction: (friction, friction_at),
             x,
         };
         // A simplicial factor: the right-hand side written straight into
@@ -351,6 +355,7 @@ pub(super) struct RhsParts<'a> {
     adjacency: &'a Adjacency,
     sums: Option<&'a [Vec3A]>,
     spheres: &'a [PenaltySphere],
+    friction: (&'a [Friction], &'a [u32]),
     x: &'a [Vec3A],
 }
 
@@ -384,6 +389,10 @@ impl RhsParts<'_> {
             if let Some(contact) = sphere.contact(self.x[i]) {
                 acc += contact.force.as_dvec3();
             }
+        }
+        // Friction's force rides on its contact's `c·p` (see `friction`).
+        if let Some((term, c)) = term_at(self.friction, self.near, f) {
+            acc += term.force(self.x[i], c).as_dvec3();
         }
         acc
     }
@@ -429,6 +438,10 @@ impl ProjectiveWorkspace {
                 if let Some(contact) = sphere.contact(x[i]) {
                     r += contact.force;
                 }
+            }
+            let terms = (&self.friction[..], &self.friction_at[..]);
+            if let Some((term, c)) = term_at(terms, &self.near, f) {
+                r += term.force(x[i], c);
             }
             if track {
                 // In `f32`, as `r` is (an `f64` sum was measurably slower

@@ -3,7 +3,7 @@
 
 use bevy::math::{DVec3, Vec3A};
 
-use super::{ProjectiveSolver, ProjectiveWorkspace};
+use super::{ProjectiveSolver, ProjectiveWorkspace, friction};
 use crate::collision::PenaltySphere;
 use crate::model::ClothModel;
 use crate::solver::SolveError;
@@ -65,11 +65,15 @@ impl ProjectiveWorkspace {
             energy += 0.5 * k[e] * stretch * stretch;
         });
         if !spheres.is_empty() {
-            for &i in &self.free {
+            for (f, &i) in self.free.iter().enumerate() {
                 for sphere in spheres {
                     if let Some(contact) = sphere.contact(x[i as usize]) {
                         energy += 0.5 * f64::from(sphere.stiffness * contact.depth * contact.depth);
                     }
+                }
+                let terms = (&self.friction[..], &self.friction_at[..]);
+                if let Some((term, c)) = friction::term_at(terms, &self.near, f) {
+                    energy += term.energy(x[i as usize], c);
                 }
             }
         }
