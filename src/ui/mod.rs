@@ -477,14 +477,24 @@ fn self_collision_ui(
         return;
     }
     let (mut thickness, mut friction) = (sc.thickness, sc.friction);
-    ui.add(
-        egui::Slider::new(&mut thickness, 0.1 * edge..=0.99 * edge)
-            .text("thickness (m)")
-            .max_decimals(3),
-    )
-    .on_hover_text("below about 0.71 of the shortest edge, layers may pass through each other");
-    ui.add(egui::Slider::new(&mut friction, 0.0..=1.0).text("self friction"));
-    if (thickness, friction) != (sc.thickness, sc.friction) {
+    // Shown to three decimals, not rounded to them: with `max_decimals` the
+    // slider rounded the value itself (and said it changed), so the drape
+    // scene's first sheet went from `for_model`'s 0.03484 m to 0.035 at the
+    // panel's first frame, and the windowed scene parted from the headless
+    // one. Written only when a slider says it moved.
+    let moved = ui
+        .add(
+            egui::Slider::new(&mut thickness, 0.1 * edge..=0.99 * edge)
+                .text("thickness (m)")
+                .custom_formatter(|v, _| format!("{v:.3}")),
+        )
+        .on_hover_text("below about 0.71 of the shortest edge, layers may pass through each other")
+        .changed();
+    let moved = ui
+        .add(egui::Slider::new(&mut friction, 0.0..=1.0).text("self friction"))
+        .changed()
+        || moved;
+    if moved {
         sc.thickness = thickness;
         sc.friction = friction;
     }
@@ -841,5 +851,42 @@ mod tests {
         let mut world = World::new();
         let mut system = IntoSystem::<(), Result, _>::into_system(inspector_panel);
         system.initialize(&mut world);
+    }
+
+    #[test]
+    fn the_self_collision_controls_write_nothing_the_user_did_not_move() {
+        // The drape scene's sheets: `for_model`'s thickness has more
+        // decimals than the slider shows.
+        let model = crate::model::ClothBuilder::grid(
+            32,
+            32,
+            Vec3::new(-0.6, 0.0, -0.6),
+            Vec3::new(-0.6, 0.0, 0.6),
+            Vec3::new(0.6, 0.0, -0.6),
+        )
+        .build()
+        .unwrap();
+        let sc = SelfCollision::for_model(&model);
+        assert_ne!(sc.thickness, (sc.thickness * 1000.0).round() / 1000.0);
+        let mut world = World::new();
+        let entity = world.spawn(sc).id();
+        let mut queue = bevy::ecs::world::CommandQueue::default();
+        let elsewhere = World::new();
+        let mut commands = Commands::new(&mut queue, &elsewhere);
+        let ctx = egui::Context::default();
+        let before = world.change_tick();
+        for _ in 0..3 {
+            let _ = ctx.run_ui(egui::RawInput::default(), |ui| {
+                let current = world.get_mut::<SelfCollision>(entity);
+                self_collision_ui(ui, &mut commands, entity, current, &model);
+            });
+        }
+        let after = world.entity(entity).get_ref::<SelfCollision>().unwrap();
+        assert_eq!(*after, sc);
+        assert!(
+            !after
+                .last_changed()
+                .is_newer_than(before, world.change_tick())
+        );
     }
 }
