@@ -402,6 +402,15 @@ pub(crate) fn has_edges(shape: &Shape) -> bool {
     matches!(shape, Shape::Cuboid(_))
 }
 
+/// Whether `stiff`'s substeps push the cloth's edges off `shape`: a box's
+/// always ([`has_edges`]), a smooth solid's only for a cloth with
+/// self-collision, whose layers folded on the solid keep their order only
+/// with those pushes (see
+/// [`XpbdSolver::collider_edges`](crate::solver::xpbd::XpbdSolver::collider_edges)).
+pub(crate) fn pushes_edges(shape: &Shape, self_collision: bool) -> bool {
+    has_edges(shape) || self_collision
+}
+
 /// A sphere around a solid that is not a plane: centre and radius.
 fn bounding_sphere(shape: &Shape) -> (Vec3A, f32) {
     match *shape {

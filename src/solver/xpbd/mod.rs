@@ -60,7 +60,7 @@ use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
 use crate::collision::self_contact::SelfContacts;
-use crate::collision::swept::{edge_candidates, edge_pass_over, has_edges};
+use crate::collision::swept::{edge_candidates, edge_pass_over, pushes_edges};
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
 use crate::solver::engine::sweep::{ColouredSprings, sweep};
@@ -336,8 +336,10 @@ impl Method for XpbdSolver {
         };
         // The edges each solid may meet this step, found once: within what
         // a vertex can move in the step (its speed, the fall) and the
-        // solid's own motion of it.
-        let reach = if projected > 0 {
+        // solid's own motion of it; none for a solid that pushes vertices
+        // only.
+        let pushing = |solid: &Shape| pushes_edges(solid, self_collision.is_some());
+        let reach = if ws.solids[..projected].iter().any(pushing) {
             v.iter().map(|v| v.length()).fold(0.0_f32, f32::max) * params.dt as f32
                 + gravity.length() * (params.dt * params.dt) as f32
         } else {
@@ -349,7 +351,7 @@ impl Method for XpbdSolver {
             .zip(&ws.motion)
             .zip(&mut ws.edges)
         {
-            if has_edges(solid) || self_collision.is_some() {
+            if pushing(solid) {
                 edge_candidates(model, x, solid, reach + motion.length() + 1e-3, edges);
             } else {
                 edges.clear();
