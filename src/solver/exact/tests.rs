@@ -401,64 +401,17 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
     // penalty term of Newton's objective. μ = 0.5 > tan 20° holds it (the
     // lagged friction term allows a creep of `STICK_SPEED` sizes per
     // second); without friction it slides g sin 20° t²/2 ≈ 1.7 m in 1 s.
-    use crate::collision::{Plane, Shape};
-    use bevy::math::Vec3;
-    let angle = 20f32.to_radians();
-    let normal = Vec3A::new(-angle.sin(), angle.cos(), 0.0);
-    let down_slope = Vec3::new(-angle.cos(), -angle.sin(), 0.0);
-    let model = ClothBuilder::grid(5, 5, Vec3::ZERO, 2.0 * down_slope, 2.0 * Vec3::Z)
-        .build()
-        .unwrap();
-    let params = StepParams {
-        dt: 1.0 / 60.0,
-        damping: 1.0,
-        stiffness: crate::solver::SpringStiffness::uniform(1e5),
-        ..StepParams::LAB
-    };
-    let slide = |friction: f32| {
-        let slope = Shape::Plane(Plane {
-            point: Vec3A::ZERO,
-            normal,
-            friction,
-        });
-        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-        let mut ws = ExactWorkspace::default();
-        for _ in 0..60 {
-            let input = StepInput {
-                model: &model,
-                params: &params,
-                spheres: &[],
-                contacts: &[slope],
-                contact_motion: &[],
-                skin: None,
-                self_collision: None,
-            };
-            let report = ExactSolver::BUDGET
-                .step_with(input, &mut state, &mut ws)
-                .unwrap();
-            // On landing Newton may spend its budget, but never far from
-            // the step.
-            let error = report.relative_error.unwrap();
-            assert!(error < crate::solver::CONVERGENCE_TOLERANCE, "{report:?}");
-        }
-        let moved: Vec3A = state
-            .positions
-            .iter()
-            .zip(&ClothState::at_rest(&model, &Affine3A::IDENTITY).positions)
-            .map(|(x, r)| *x - *r)
-            .sum();
-        moved / state.positions.len() as f32
-    };
-    let (held, slid) = (slide(0.5), slide(0.0));
-    let along = |m: Vec3A| m.dot(Vec3A::from(down_slope));
+    // On landing Newton may spend its budget, but never far from the step.
+    let (held, held_off, held_error) = crate::testing::slide_on_slope(&ExactSolver::BUDGET, 0.5);
+    let (slid, slid_off, slid_error) = crate::testing::slide_on_slope(&ExactSolver::BUDGET, 0.0);
+    for error in [held_error, slid_error] {
+        assert!(error < crate::solver::CONVERGENCE_TOLERANCE, "{error}");
+    }
     // The cloth is 2 m across: it may creep 2 mm/s once held.
-    assert!(along(held).abs() < 5e-3, "held cloth moved {held}");
-    assert!(
-        (along(slid) - 1.68).abs() < 0.1,
-        "frictionless cloth moved {slid}"
-    );
+    assert!(held.abs() < 5e-3, "held cloth moved {held}");
+    assert!((slid - 1.68).abs() < 0.1, "frictionless cloth moved {slid}");
     // Neither leaves the slope.
-    assert!(held.dot(normal).abs() < 1e-2 && slid.dot(normal).abs() < 1e-2);
+    assert!(held_off.abs() < 1e-2 && slid_off.abs() < 1e-2);
 }
 
 #[test]

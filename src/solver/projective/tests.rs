@@ -614,53 +614,8 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
     // the contact's weight on the diagonal (`PD_CONTACT_STIFFNESS`) holds
     // each iteration's tangential motion too, and its steps say so (their
     // estimated error is above the convergence tolerance).
-    use crate::collision::{Plane, Shape};
     use crate::solver::CONVERGENCE_TOLERANCE;
-    let angle = 20f32.to_radians();
-    let normal = Vec3A::new(-angle.sin(), angle.cos(), 0.0);
-    let down_slope = Vec3::new(-angle.cos(), -angle.sin(), 0.0);
-    let model = ClothBuilder::grid(5, 5, Vec3::ZERO, 2.0 * down_slope, 2.0 * Vec3::Z)
-        .build()
-        .unwrap();
-    let params = StepParams {
-        dt: 1.0 / 60.0,
-        damping: 1.0,
-        stiffness: SpringStiffness::uniform(1e5),
-        ..StepParams::LAB
-    };
-    // The mean motion along the slope and off it, and the largest
-    // estimated error of a step.
-    let slide = |method: ProjectiveSolver, friction: f32| {
-        let slope = Shape::Plane(Plane {
-            point: Vec3A::ZERO,
-            normal,
-            friction,
-        });
-        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-        let mut ws = ProjectiveWorkspace::default();
-        let mut error = 0.0f32;
-        for _ in 0..60 {
-            let input = StepInput {
-                model: &model,
-                params: &params,
-                spheres: &[],
-                contacts: &[slope],
-                contact_motion: &[],
-                skin: None,
-                self_collision: None,
-            };
-            let report = method.step_with(input, &mut state, &mut ws).unwrap();
-            error = error.max(report.relative_error.unwrap());
-        }
-        let moved: Vec3A = state
-            .positions
-            .iter()
-            .zip(&ClothState::at_rest(&model, &Affine3A::IDENTITY).positions)
-            .map(|(x, r)| *x - *r)
-            .sum::<Vec3A>()
-            / state.positions.len() as f32;
-        (moved.dot(Vec3A::from(down_slope)), moved.dot(normal), error)
-    };
+    use crate::testing::slide_on_slope;
     let chebyshev = [
         ProjectiveSolver::PRESET,
         ProjectiveSolver::chebyshev(PD_ITERATIONS)
@@ -668,13 +623,13 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
     ];
     let anderson = ProjectiveSolver::anderson(PD_ANDERSON_ITERATIONS, PD_ANDERSON_WINDOW);
     for method in chebyshev.into_iter().chain([anderson]) {
-        let (held, off, _) = slide(method, 0.5);
+        let (held, off, _) = slide_on_slope(&method, 0.5);
         // The cloth is 2 m across; it stays on the slope.
         assert!(
             held.abs() < 5e-3 && off.abs() < 1e-2,
             "{method:?}: held cloth moved {held}, {off}"
         );
-        let (slid, off, error) = slide(method, 0.0);
+        let (slid, off, error) = slide_on_slope(&method, 0.0);
         assert!(off.abs() < 1e-2, "{method:?}: {off} off the slope");
         if method == anderson {
             assert!(
