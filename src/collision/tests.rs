@@ -249,7 +249,8 @@ mod self_collision {
     use bevy::math::{Affine3A, Vec3, Vec3A};
 
     use crate::collision::self_contact::{
-        IntersectionCheck, SelfCollisionInput, SelfContacts, count_intersections,
+        AFTER_STEP_PASSES, IntersectionCheck, Pass, SETTLED, SelfCollisionInput, SelfContacts,
+        count_intersections, settle,
     };
     use crate::collision::{SelfCollision, SelfCollisionError};
     use crate::model::{ClothBuilder, ClothModel, ClothState};
@@ -362,6 +363,26 @@ mod self_collision {
         contacts.resolve(&model, &mut x, |i| start[i], 1.0);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
+    }
+
+    #[test]
+    fn the_passes_after_the_step_end_once_one_pushes_nothing_deeper_than_settled() {
+        let run = |script: &[(u32, f32)]| {
+            let mut calls = 0;
+            let first = settle(|| {
+                let (touching, deepest) = script[calls.min(script.len() - 1)];
+                calls += 1;
+                Pass { touching, deepest }
+            });
+            (first, calls)
+        };
+        // The third pass pushes less than SETTLED deep: no fourth.
+        let settling = [(10, 0.5), (8, 10.0 * SETTLED), (6, 0.5 * SETTLED), (4, 0.0)];
+        assert_eq!(run(&settling), (10, 3));
+        // Nothing touching: one pass.
+        assert_eq!(run(&[(0, 0.0)]), (0, 1));
+        // Still deep: every pass, and the first pass's count.
+        assert_eq!(run(&[(7, 0.5)]), (7, AFTER_STEP_PASSES as usize));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 use bevy::math::Vec3A;
 
-use super::{AFTER_STEP_PASSES, SelfCollision, SelfContacts, inverse_mass};
+use super::{SelfCollision, SelfContacts, inverse_mass, settle};
 use crate::model::ClothModel;
 
 /// Cloths against each other after their steps: what each cloth's step
@@ -12,7 +12,7 @@ use crate::model::ClothModel;
 /// ended; [`resolve`](Self::resolve) then finds, in one broad phase, the
 /// pairs of vertices of different cloths within the mean of their
 /// thicknesses and pushes them apart by inverse mass in
-/// [`AFTER_STEP_PASSES`] passes.
+/// at most [`AFTER_STEP_PASSES`](super::AFTER_STEP_PASSES) passes.
 #[derive(Clone, Debug, Default)]
 pub struct ClothLayers {
     contacts: SelfContacts,
@@ -100,23 +100,15 @@ impl ClothLayers {
         );
         contacts.own = x.len();
         contacts.others.clear();
-        let mut touching = 0;
-        for pass in 0..AFTER_STEP_PASSES {
-            let now = contacts.resolve_weighted(
+        settle(|| {
+            contacts.resolve_weighted(
                 contacts.pairs.iter(),
                 x,
                 |i| start[i],
                 1.0,
                 |i| weight[i],
-            );
-            if pass == 0 {
-                touching = now;
-            }
-            if now == 0 {
-                break;
-            }
-        }
-        touching
+            )
+        })
     }
 
     /// Cloth `index`'s resolved positions (as many as it added).

@@ -62,7 +62,7 @@ impl SelfContacts {
         let mut rest = None;
         for &k in active {
             let p = &self.pairs[k as usize];
-            if self.resolve_pair(p, x, &start, progress, &weight) {
+            if self.resolve_pair(p, x, &start, progress, &weight).is_some() {
                 touching += 1;
                 if far(x, p.a as usize) || far(x, p.b as usize) {
                     rest = Some(k as usize + 1);
@@ -71,8 +71,9 @@ impl SelfContacts {
             }
         }
         if let Some(from) = rest {
-            touching +=
-                self.resolve_weighted(self.pairs[from..].iter(), x, start, progress, weight);
+            touching += self
+                .resolve_weighted(self.pairs[from..].iter(), x, start, progress, weight)
+                .touching;
             // A vertex moved beyond the list's reach.
             self.active.at.clear();
         }
