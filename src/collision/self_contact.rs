@@ -707,14 +707,9 @@ impl SelfContacts {
     ) -> Option<f32> {
         let own = self.own;
         let (a, b) = (p.a as usize, p.b as usize);
-        let Some(&xa) = x.get(a) else {
-            return None;
-        };
+        let &xa = x.get(a)?;
         let xb = if b < own {
-            match x.get(b) {
-                Some(&xb) => xb,
-                None => return None,
-            }
+            *x.get(b)?
         } else {
             self.others[b - own].position
         };
@@ -736,10 +731,7 @@ impl SelfContacts {
         let normal = if dist > 1e-6 * min {
             d / dist
         } else {
-            match (start_b - start(a)).try_normalize() {
-                Some(n) => n,
-                None => return None,
-            }
+            (start_b - start(a)).try_normalize()?
         };
         let depth = min - dist;
         let (sa, sb) = (wa / w, wb / w);
