@@ -21,7 +21,7 @@
 
 use bevy::math::{DVec3, Vec3A};
 
-use crate::collision::{PenaltySphere, PenaltySurface};
+use crate::collision::{PenaltyContact, PenaltySphere, PenaltySurface};
 
 /// No friction at this free vertex.
 pub(super) const NONE: u32 = u32::MAX;
@@ -92,32 +92,47 @@ pub(super) struct EndedIn {
     penalties: usize,
 }
 
+/// A vertex's contact with friction pressed hardest so far, as
+/// [`EndedIn`] keeps it: `(vertex, penalty, μλ, normal)`.
+pub(super) type Pressed = Option<(u32, u32, f32, Vec3A)>;
+
 impl EndedIn {
-    /// Records the contacts of the free vertices `free` at `x`: the
-    /// deepest-pressed collider with friction, per vertex (the first 64
-    /// penalties, as the global step's near sets).
-    pub(super) fn record(&mut self, free: &[u32], x: &[Vec3A], penalties: &[PenaltySphere]) {
+    /// Forgets the last step's contacts: this step's, against `penalties`
+    /// colliders, are [`offer`](Self::offer)ed vertex by vertex and
+    /// [`keep`](Self::keep)-ed.
+    pub(super) fn clear(&mut self, penalties: usize) {
         self.contacts.clear();
-        self.penalties = penalties.len();
-        for &i in free {
-            let mut best: Option<(u32, u32, f32, Vec3A)> = None;
-            for (k, penalty) in penalties.iter().enumerate().take(64) {
-                let PenaltySurface::Shape(shape) = penalty.surface else {
-                    continue;
-                };
-                let mu = shape.friction();
-                if mu.is_nan() || mu <= 0.0 {
-                    continue;
-                }
-                if let Some(c) = penalty.contact(x[i as usize]) {
-                    let bound = mu * penalty.stiffness * c.depth;
-                    if bound.is_finite() && best.is_none_or(|b| bound > b.2) {
-                        best = Some((i, k as u32, bound, c.normal));
-                    }
-                }
-            }
-            self.contacts.extend(best);
+        self.penalties = penalties;
+    }
+
+    /// Vertex `i`'s contact `c` with penalty `k`: into `best` if that
+    /// collider has friction and presses harder (`μλ`) than what `best`
+    /// holds. Only the first 64 penalties count (as the global step's near
+    /// sets).
+    pub(super) fn offer(
+        best: &mut Pressed,
+        i: u32,
+        k: usize,
+        penalty: &PenaltySphere,
+        c: &PenaltyContact,
+    ) {
+        let PenaltySurface::Shape(shape) = penalty.surface else {
+            return;
+        };
+        let mu = shape.friction();
+        if k >= 64 || mu.is_nan() || mu <= 0.0 {
+            return;
         }
+        let bound = mu * penalty.stiffness * c.depth;
+        if bound.is_finite() && best.is_none_or(|b| bound > b.2) {
+            *best = Some((i, k as u32, bound, c.normal));
+        }
+    }
+
+    /// Keeps a vertex's contact pressed hardest (the free vertices in
+    /// order), if any.
+    pub(super) fn keep(&mut self, best: Pressed) {
+        self.contacts.extend(best);
     }
 
     /// This step's terms from the last step's contacts, where the same

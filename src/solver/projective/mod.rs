@@ -659,6 +659,7 @@ impl ProjectiveSolver {
         let mut residual = 0.0f64;
         let mut convergence = ConvergenceSums::default();
         let inv_h = 1.0 / params.dt as f32;
+        ws.ended_in.clear(spheres.len());
         for &i in &ws.free {
             let i = i as usize;
             let mass = f64::from(masses[i]);
@@ -673,13 +674,18 @@ impl ProjectiveSolver {
             // not `m/h²`: the error estimate divides that part of the
             // gradient by it (else a millimetre's penetration of a stiff
             // penalty read as metres of error on a cloth at rest on it).
+            // The contacts the step ended in are also kept for the next
+            // step's friction (the one pressed hardest per vertex).
             let mut along = None;
-            for sphere in spheres {
+            let mut pressed = None;
+            for (k, sphere) in spheres.iter().enumerate() {
                 if let Some(contact) = sphere.contact(x[i]) {
                     g -= contact.force.as_dvec3();
                     along = Some((contact.normal.as_dvec3(), f64::from(sphere.stiffness)));
+                    friction::EndedIn::offer(&mut pressed, i as u32, k, sphere, &contact);
                 }
             }
+            ws.ended_in.keep(pressed);
             let f = ws.dof_of[i] as usize;
             let terms = (&ws.friction[..], &ws.friction_at[..]);
             let friction = friction::term_at(terms, &ws.near, f);
@@ -703,7 +709,6 @@ impl ProjectiveSolver {
             // old one).
             v[i] += (x[i] - ws.x_tilde[i]) * inv_h;
         }
-        ws.ended_in.record(&ws.free, x, spheres);
         Ok(StepReport {
             iterations,
             residual: Some(residual.sqrt() as f32),
