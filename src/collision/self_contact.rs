@@ -39,6 +39,22 @@
 //! together) is parted gradually, by at most [`UNTANGLE`] of the thickness
 //! per step, not launched apart in one substep.
 //!
+//! # Edges already through
+//!
+//! The pairs keep a surface from passing through itself, but they cannot
+//! take back an edge that went through one of the cloth's triangles anyway
+//! (a thickness below 0.71 of the edges, a step that went wrong): their
+//! pushes hold its end on the side it is on, for the rest of the run.
+//! After each `stiff` step, `untangle` finds such edges with the exact
+//! check below and moves the end nearer the triangle's plane (the one that
+//! went through) back to the other end's side, [`UNTANGLE_MARGIN`] of the
+//! thickness past the plane, the triangle's corners taking their share by
+//! inverse mass, as a point–triangle contact would; the pairs do the rest
+//! in the next step. It costs the check, about a thirteenth of a `stiff`
+//! step with self-collision (4.4 ms on a 64² sheet folded in four, 1 ms on
+//! a 32² sheet), which would be ten steps of the other methods, so they
+//! leave it. Edges through another cloth are not taken back.
+//!
 //! # Cloth against cloth
 //!
 //! Each cloth's step also sees the vertices of the other cloths with a
@@ -61,7 +77,10 @@ mod check;
 mod layers;
 mod substeps;
 
-pub use check::{IntersectionCheck, count_crossings, count_intersections, ray_meets};
+pub(crate) use check::untangle;
+pub use check::{
+    IntersectionCheck, UNTANGLE_MARGIN, count_crossings, count_intersections, ray_meets,
+};
 pub use layers::ClothLayers;
 pub use substeps::SUBSTEP_SKIN;
 

@@ -513,21 +513,19 @@ mod self_collision {
 }
 
 mod untangle {
-    use bevy::math::{Affine3A, Vec3};
+    use bevy::math::{Affine3A, Vec3, Vec3A};
 
     use crate::collision::SelfCollision;
-    use crate::collision::self_contact::SelfCollisionInput;
-    use crate::model::{ClothBuilder, ClothMaterial, ClothState};
+    use crate::collision::self_contact::{
+        IntersectionCheck, SelfCollisionInput, count_intersections, untangle,
+    };
+    use crate::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
     use crate::solver::xpbd::{XpbdSolver, XpbdWorkspace};
     use crate::solver::{Method, StepInput, StepParams};
 
-    /// Two 1 m layers of 16² cotton in one cloth, built 20 cm apart and
-    /// started a millimetre apart (the upper moved down whole: the springs
-    /// are content), far inside the thickness: stepped with `stiff`
-    /// without gravity, they are parted gently, never launched.
-    #[test]
-    fn a_cloth_that_starts_interpenetrated_is_parted_without_a_launch() {
-        let n = 16u32;
+    /// Two 1 m layers of `n²` cotton in one cloth, built 20 cm apart (the
+    /// second above the first).
+    fn two_layers(n: u32) -> ClothModel {
         let mut positions = Vec::new();
         let mut indices = Vec::new();
         for layer in 0..2u32 {
@@ -545,37 +543,121 @@ mod untangle {
                 }
             }
         }
-        let model = ClothBuilder::from_triangles(positions, indices)
+        ClothBuilder::from_triangles(positions, indices)
             .with_material(ClothMaterial::COTTON)
             .build()
-            .unwrap();
+            .unwrap()
+    }
+
+    /// `stiff` with `sc`, no gravity, one 60 Hz step of `model` at `state`.
+    fn step(model: &ClothModel, state: &mut ClothState, sc: SelfCollision, ws: &mut XpbdWorkspace) {
+        let params = StepParams {
+            dt: 1.0 / 60.0,
+            stiffness: ClothMaterial::COTTON.spring_stiffness(model),
+            gravity: Vec3::ZERO,
+            ..StepParams::LAB
+        };
+        let input = StepInput {
+            model,
+            params: &params,
+            spheres: &[],
+            contacts: &[],
+            contact_motion: &[],
+            skin: None,
+            self_collision: Some(SelfCollisionInput::alone(sc)),
+        };
+        XpbdSolver::STIFF.step_with(input, state, ws).unwrap();
+    }
+
+    /// The two layers 2 thicknesses apart, and one vertex of the upper
+    /// poked through the lower (a fifth of the thickness below it, over
+    /// the middle of one of its triangles), as a step that went wrong
+    /// leaves it: the model, the thickness, the positions and the poked
+    /// vertex.
+    fn poked(n: u32) -> (ClothModel, SelfCollision, Vec<Vec3A>, usize) {
+        let model = two_layers(n);
+        let sc = SelfCollision::for_model(&model);
+        let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        let nn = (n * n) as usize;
+        for p in &mut x[nn..] {
+            p.y = 2.0 * sc.thickness;
+        }
+        let h = 1.0 / (n - 1) as f32;
+        let below = 7 * n as usize + 7;
+        let poked = nn + below;
+        x[poked] = x[below] + Vec3A::new(h / 3.0, -0.2 * sc.thickness, h / 3.0);
+        (model, sc, x, poked)
+    }
+
+    /// Vertex–vertex self-collision holds an edge already through a
+    /// triangle where it is (its pushes keep the end on its side):
+    /// `untangle` takes the end that went through back to the other end's
+    /// side, the triangle's corners taking their share, and touches
+    /// nothing else.
+    #[test]
+    fn untangle_takes_an_edge_through_a_triangle_back_out() {
+        let (model, sc, mut x, poked) = poked(16);
+        let start = x.clone();
+        let mut check = IntersectionCheck::default();
+        assert!(count_intersections(&model, &x, &mut check) > 0);
+        let found = untangle(&model, &mut x, &mut check, sc.thickness);
+        assert!(found > 0);
+        assert_eq!(count_intersections(&model, &x, &mut check), 0);
+        // Back above the lower layer (at y = 0), within the thickness.
+        assert!(
+            x[poked].y > 0.0 && x[poked].y < sc.thickness,
+            "{}",
+            x[poked].y
+        );
+        // Only the poked vertex and one lower triangle's corners moved,
+        // along y (the triangle's normal), the corners down.
+        let moved: Vec<usize> = (0..x.len()).filter(|&i| x[i] != start[i]).collect();
+        assert!(moved.contains(&poked) && moved.len() <= 4, "{moved:?}");
+        for &i in &moved {
+            let d = x[i] - start[i];
+            assert!(d.x.abs() < 1e-6 && d.z.abs() < 1e-6, "{d}");
+            assert!(i == poked || x[i].y < start[i].y);
+        }
+        // Nothing left to do.
+        let again = x.clone();
+        assert_eq!(untangle(&model, &mut x, &mut check, sc.thickness), 0);
+        assert_eq!(x, again);
+    }
+
+    /// The same poke stepped with `stiff`: the edges through the sheet are
+    /// out after the first step and stay out.
+    #[test]
+    fn an_edge_poked_through_the_cloth_is_taken_back_out_in_a_step() {
+        let (model, sc, x, _) = poked(16);
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        state.positions = x;
+        let mut check = IntersectionCheck::default();
+        let mut ws = XpbdWorkspace::default();
+        for _ in 0..60 {
+            step(&model, &mut state, sc, &mut ws);
+            assert_eq!(count_intersections(&model, &state.positions, &mut check), 0);
+        }
+        assert!(state.positions.iter().all(|p| p.is_finite()));
+    }
+
+    /// Two layers of 16² cotton started a millimetre apart (the upper moved
+    /// down whole: the springs are content), far inside the thickness:
+    /// stepped with `stiff` without gravity, they are parted gently, never
+    /// launched.
+    #[test]
+    fn a_cloth_that_starts_interpenetrated_is_parted_without_a_launch() {
+        let n = 16u32;
+        let model = two_layers(n);
         let sc = SelfCollision::for_model(&model);
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
         let nn = (n * n) as usize;
         for p in &mut state.positions[nn..] {
             p.y = 0.001;
         }
-        let params = StepParams {
-            dt: 1.0 / 60.0,
-            stiffness: ClothMaterial::COTTON.spring_stiffness(&model),
-            gravity: Vec3::ZERO,
-            ..StepParams::LAB
-        };
         let mut ws = XpbdWorkspace::default();
         let mut fastest = 0.0f32;
         for _ in 0..60 {
-            let input = StepInput {
-                model: &model,
-                params: &params,
-                spheres: &[],
-                contacts: &[],
-                contact_motion: &[],
-                skin: None,
-                self_collision: Some(SelfCollisionInput::alone(sc)),
-            };
-            XpbdSolver::STIFF
-                .step_with(input, &mut state, &mut ws)
-                .unwrap();
+            step(&model, &mut state, sc, &mut ws);
             let speed = state
                 .velocities
                 .iter()

@@ -27,9 +27,18 @@ fn cells_of(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<impl Iterator<Item = u64>>
 /// Scratch of [`count_intersections`]: the triangles' cells.
 #[derive(Clone, Debug, Default)]
 pub struct IntersectionCheck {
+    /// The triangles' cells, `(cell, triangle)`, by hash bucket.
     cells: Vec<(u64, u32)>,
+    /// Where each bucket starts in `cells` (and the end).
+    starts: Vec<u32>,
     candidates: Vec<u32>,
+    /// Per triangle, the last edge it was a candidate of (see
+    /// `count_through`).
+    stamps: Vec<u32>,
     edges: Vec<(u32, u32)>,
+    /// The edges through a triangle found by [`untangle`]: the edge's ends
+    /// and the triangle's index.
+    found: Vec<(u32, u32, u32)>,
 }
 
 /// Whether the segment `p`–`q` passes through the triangle `a, b, c`: its
@@ -60,7 +69,7 @@ pub fn count_intersections(
     x: &[Vec3A],
     check: &mut IntersectionCheck,
 ) -> usize {
-    count_through((model, x), (model, x), true, check)
+    count_through((model, x), (model, x), true, check, |_, _, _| {})
 }
 
 /// The exact check between two cloths: how many mesh edges of either pass
@@ -71,17 +80,20 @@ pub fn count_crossings(
     b: (&ClothModel, &[Vec3A]),
     check: &mut IntersectionCheck,
 ) -> usize {
-    count_through(a, b, false, check) + count_through(b, a, false, check)
+    count_through(a, b, false, check, |_, _, _| {})
+        + count_through(b, a, false, check, |_, _, _| {})
 }
 
 /// Edges of the first cloth through triangles of the second; `same` when
 /// they are one cloth (an edge and a triangle sharing a vertex are then
-/// not counted).
+/// not counted). Each is also shown to `found` (the edge's ends, the
+/// triangle's index), in a fixed order.
 fn count_through(
     (edge_model, xe): (&ClothModel, &[Vec3A]),
     (model, x): (&ClothModel, &[Vec3A]),
     same: bool,
     check: &mut IntersectionCheck,
+    mut found: impl FnMut(u32, u32, u32),
 ) -> usize {
     let triangles = model.topology().triangles();
     if triangles.is_empty()
@@ -102,14 +114,41 @@ fn count_through(
         return 0;
     }
     let inv = 1.0 / size;
-    check.cells.clear();
-    for (i, t) in triangles.iter().enumerate() {
+    // The triangles' cells in a hash table filled by a counting sort
+    // (bucket `b`'s entries are `cells[starts[b]..starts[b + 1]]`, in
+    // increasing triangle order): a sort of the entries and a binary search
+    // per cell looked up were most of the check.
+    let boxes = |t: &[u32; 3]| {
         let [a, b, c] = corners(t);
-        if let Some(keys) = cells_of(a.min(b).min(c), a.max(b).max(c), inv) {
-            check.cells.extend(keys.map(|k| (k, i as u32)));
+        cells_of(a.min(b).min(c), a.max(b).max(c), inv)
+    };
+    let total: usize = triangles
+        .iter()
+        .filter_map(|t| boxes(t).map(Iterator::count))
+        .sum();
+    let bits = (2 * total).next_power_of_two().max(2).trailing_zeros();
+    let bucket = |k: u64| (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize;
+    check.starts.clear();
+    check.starts.resize((1 << bits) + 1, 0);
+    for t in triangles {
+        for k in boxes(t).into_iter().flatten() {
+            check.starts[bucket(k)] += 1;
         }
     }
-    check.cells.sort_unstable();
+    let mut sum = 0;
+    for s in &mut check.starts {
+        sum += *s;
+        *s = sum;
+    }
+    check.cells.clear();
+    check.cells.resize(total, (0, 0));
+    for (i, t) in triangles.iter().enumerate().rev() {
+        for k in boxes(t).into_iter().flatten() {
+            let s = &mut check.starts[bucket(k)];
+            *s -= 1;
+            check.cells[*s as usize] = (k, i as u32);
+        }
+    }
     // Each edge once.
     check.edges.clear();
     for t in edge_model.topology().triangles() {
@@ -119,34 +158,126 @@ fn count_through(
     }
     check.edges.sort_unstable();
     check.edges.dedup();
+    check.stamps.clear();
+    check.stamps.resize(triangles.len(), 0);
+    let mut stamp = 0u32;
     let mut count = 0;
     for &(u, w) in &check.edges {
         let (p, q) = (xe[u as usize], xe[w as usize]);
         let Some(keys) = cells_of(p.min(q), p.max(q), inv) else {
             continue;
         };
+        // Each triangle once per edge: stamped with the edge's number.
         check.candidates.clear();
+        stamp += 1;
         for k in keys {
-            let from = check.cells.partition_point(|&(c, _)| c < k);
-            check.candidates.extend(
-                check.cells[from..]
-                    .iter()
-                    .take_while(|&&(c, _)| c == k)
-                    .map(|&(_, t)| t),
-            );
+            let b = bucket(k);
+            let (from, to) = (check.starts[b] as usize, check.starts[b + 1] as usize);
+            for &(_, t) in check.cells[from..to].iter().filter(|&&(c, _)| c == k) {
+                let seen = &mut check.stamps[t as usize];
+                if *seen != stamp {
+                    *seen = stamp;
+                    check.candidates.push(t);
+                }
+            }
         }
+        // In increasing order, as the count's visitors are shown them.
         check.candidates.sort_unstable();
-        check.candidates.dedup();
+        let (lo, hi) = (p.min(q), p.max(q));
         for &other in &check.candidates {
             let tri = triangles[other as usize];
             if same && (tri.contains(&u) || tri.contains(&w)) {
                 continue;
             }
-            if segment_hits_triangle(p, q, corners(&tri)) {
+            // Boxes apart: the crossing point would lie in both (most
+            // triangles sharing a cell with the edge are not near it).
+            let [a, b, c] = corners(&tri);
+            if hi.cmplt(a.min(b).min(c)).any() || lo.cmpgt(a.max(b).max(c)).any() {
+                continue;
+            }
+            if segment_hits_triangle(p, q, [a, b, c]) {
                 count += 1;
+                found(u, w, other);
             }
         }
     }
+    count
+}
+
+/// How far past a triangle's plane `stiff`'s untangling takes the end of an edge
+/// through it, as a share of the self-collision's thickness (the pairs'
+/// pushes then take it the rest of the way).
+pub const UNTANGLE_MARGIN: f32 = 0.25;
+
+/// Takes `model`'s edges at `x` back out of its own triangles: for each
+/// edge through a triangle that shares no vertex with it, the end nearer
+/// the triangle's plane (the one that went through) is moved back to the
+/// other end's side, [`UNTANGLE_MARGIN`] of `thickness` past the plane,
+/// and the triangle's corners take their share of the move (by inverse
+/// mass and where the end lies over the triangle), as a point–triangle
+/// contact would. Vertex–vertex self-collision keeps a surface from
+/// passing through itself but cannot take back an edge already through:
+/// its pushes hold the end on the side it is on. Returns the edges found
+/// through (before the moves).
+pub(crate) fn untangle(
+    model: &ClothModel,
+    x: &mut [Vec3A],
+    check: &mut IntersectionCheck,
+    thickness: f32,
+) -> usize {
+    let mut found = core::mem::take(&mut check.found);
+    found.clear();
+    let count = count_through((model, x), (model, x), true, check, |u, w, t| {
+        found.push((u, w, t));
+    });
+    let triangles = model.topology().triangles();
+    let weight = |i: usize| super::inverse_mass(model, i);
+    for &(u, w, t) in &found {
+        let [a, b, c] = triangles[t as usize].map(|i| i as usize);
+        let Some(n) = (x[b] - x[a]).cross(x[c] - x[a]).try_normalize() else {
+            continue;
+        };
+        let (u, w) = (u as usize, w as usize);
+        let (du, dw) = ((x[u] - x[a]).dot(n), (x[w] - x[a]).dot(n));
+        // An earlier move may have taken this one out already.
+        if du * dw >= 0.0 {
+            continue;
+        }
+        let (end, d, other) = if du.abs() <= dw.abs() {
+            (u, du, dw)
+        } else {
+            (w, dw, du)
+        };
+        let target = UNTANGLE_MARGIN * thickness * other.signum();
+        // Where the end lies over the triangle (barycentric, clamped).
+        let p = x[end] - n * d;
+        let (e0, e1, e2) = (x[b] - x[a], x[c] - x[a], p - x[a]);
+        let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+        let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+        let det = d00 * d11 - d01 * d01;
+        if det.is_nan() || det <= 0.0 {
+            continue;
+        }
+        let v = ((d11 * d20 - d01 * d21) / det).clamp(0.0, 1.0);
+        let wc = ((d00 * d21 - d01 * d20) / det).clamp(0.0, 1.0 - v);
+        let bary = [1.0 - v - wc, v, wc];
+        let corners = [a, b, c];
+        let share: f32 = weight(end)
+            + corners
+                .iter()
+                .zip(bary)
+                .map(|(&k, s)| s * s * weight(k))
+                .sum::<f32>();
+        if share.is_nan() || share <= 0.0 {
+            continue;
+        }
+        let lambda = (target - d) / share;
+        x[end] += n * (lambda * weight(end));
+        for (&k, s) in corners.iter().zip(bary) {
+            x[k] -= n * (lambda * s * weight(k));
+        }
+    }
+    check.found = found;
     count
 }
 

@@ -26,6 +26,11 @@
 //!    substep's corrections over `h`, which keeps `f32` precision far from
 //!    the origin).
 //!
+//! After the last substep, a cloth with self-collision has the edges that
+//! went through its own triangles anyway taken back out (see
+//! [`collision::self_contact`](crate::collision::self_contact), "Edges
+//! already through").
+//!
 //! Soft springs (`α̃ ≫ w`) move by about `h² k C/m`, an explicit spring
 //! force at the substep; stiff ones (`α̃ ≪ w`) are projected to their rest
 //! length, so stiffness costs nothing in stability. What one sweep leaves
@@ -59,7 +64,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
-use crate::collision::self_contact::SelfContacts;
+use crate::collision::self_contact::{IntersectionCheck, SelfContacts, untangle};
 use crate::collision::swept::{edge_candidates, edge_pass_over, pushes_edges};
 use crate::collision::{PenaltySphere, Shape};
 use crate::model::{ClothState, SpringKind};
@@ -557,6 +562,11 @@ impl Method for XpbdSolver {
                     substep < substeps,
                 );
         }
+        // Edges that went through the cloth's own triangles anyway are
+        // taken back out (the pairs' pushes would hold them there).
+        if let Some(sc) = self_collision {
+            untangle(model, x, &mut ws.untangle, sc.setting.thickness);
+        }
         Ok(StepReport {
             iterations: substeps,
             residual: None,
@@ -711,6 +721,8 @@ pub struct XpbdWorkspace {
     skin_now: Vec<Vec3A>,
     /// Self-collision's pairs for the step.
     self_contacts: SelfContacts,
+    /// Self-collision's check for edges through the cloth after the step.
+    untangle: IntersectionCheck,
 }
 
 impl XpbdWorkspace {
