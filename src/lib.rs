@@ -100,7 +100,7 @@
 //! | You want | Preset |
 //! |---|---|
 //! | the lab's look, soft cloth (`k·dt²/m` up to ~10: `k` up to ~1e4 on the lab cloth at 30 Hz) | `chebyshev` |
-//! | a game's cloth: real mass, stiff, in contact, at a frame rate (the default, [`AnyMethod::default`]) | `stiff` (against the physical reference: every cell of the map, hanging, falling onto the sphere and draped on it; up to 16× its substeps near a collider where `k·h²/m` > 1; 2.5–3.1× Chebyshev-32 at 21² to 256² on one thread) |
+//! | a game's cloth: real mass, stiff, in contact, at a frame rate (the default, [`AnyMethod::default`]) | `stiff` (against the physical reference: every cell of the map, hanging, falling onto the sphere and draped on it; up to 16× its substeps near a collider where `k·h²/m` > 1; 2.8–3.4× Chebyshev-32 at 21² to 256² on one thread) |
 //! | stiffer cloth, implicit Euler at interactive cost (`k` up to 1e5 on the lab cloth at 60 Hz, 1e4 at 30 Hz) | `pd` |
 //! | stiff cloth, implicit Euler, small to mid-size | `pd-anderson` (37 of the map's 48 hanging cells) |
 //! | the implicit-Euler answer at any stiffness, small cloths (≤ ~51²) | `newton` (every hanging and draped cell of the map, 45 of 48 onto the sphere; its cost per step: `docs/perf.md`) |
@@ -130,8 +130,8 @@
 //!   nothing): every pair of the cloth's vertices is kept a thickness apart
 //!   ([`collision::self_contact`]; [`SelfCollision::for_model`] takes 0.9
 //!   of the shortest rest edge, where the surface cannot pass through
-//!   itself). `stiff` keeps them apart in every substep; every other method
-//!   gets it after its step, which helps but does not guarantee it (a
+//!   itself). `stiff` keeps them apart in every substep, PBD after each of
+//!   its iterations; every other method gets it after its step, which helps but does not guarantee it (a
 //!   vertex can move further than the thickness in one step). A bad setting
 //!   is a [`SelfCollisionError`], logged once, and the cloth runs without
 //!   it. Two cloths that both have one keep off each other: each step sees

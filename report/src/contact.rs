@@ -388,6 +388,19 @@ mod tests {
     }
 
     #[test]
+    fn pbd_keeps_the_folded_sheet_from_passing_through_itself_within_its_iterations() {
+        // Resolved only after its step, the pairs fought the next step's
+        // strain limiting: 22 edges through and 45 % stretch here.
+        let pbd = bevy_cloth::methods::preset("pbd").unwrap().method;
+        let with = run(&folded(16, 4, 1.0), &pbd);
+        assert_eq!((with.caught, with.failed.clone()), (None, None));
+        assert_eq!(with.penetrations, 0, "{with:?}");
+        assert!(with.max_stretch < 0.1, "{with:?}");
+        let without = run(&folded(16, 4, 1.0).without_self_collision(), &pbd);
+        assert!(without.penetrations > 0, "{without:?}");
+    }
+
+    #[test]
     fn a_ball_through_a_sheet_is_seen_passing_when_nothing_stops_it() {
         let stiff = AnyMethod::Xpbd(XpbdSolver::STIFF);
         let held = run(&ball(24, 0.25), &stiff);

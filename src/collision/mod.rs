@@ -522,7 +522,14 @@ pub(crate) fn inverse_pushes<const N: usize>(
 /// (per unit mass) `impulse`: takes up to `μ·impulse` from the tangential
 /// velocity, and the matching displacement from the position.
 #[inline]
-fn friction(x: &mut Vec3A, v: &mut Vec3A, normal: Vec3A, impulse: f32, mu: f32, dt: f32) {
+pub(crate) fn friction(
+    x: &mut Vec3A,
+    v: &mut Vec3A,
+    normal: Vec3A,
+    impulse: f32,
+    mu: f32,
+    dt: f32,
+) {
     let tangential = *v - v.dot(normal) * normal;
     let speed = tangential.length();
     if speed > 0.0 && mu > 0.0 {

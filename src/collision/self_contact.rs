@@ -27,8 +27,11 @@
 //!   shear spring are not a pair (the spring keeps them apart). After the
 //!   step the list is kept while the cloth moves slowly ([`SKIN`]).
 //! - [`SelfContacts::resolve`] in every substep of the `stiff` method (a
-//!   vertex moves less than the thickness in one) and after the step of
-//!   every other method: Gauss–Seidel over the pairs in a fixed order,
+//!   vertex moves less than the thickness in one), after every
+//!   strain-limiting iteration of PBD (with the colliders projected first:
+//!   only after its step, the pairs fought its strain limiting and a 32²
+//!   sheet folded in four tangled), and after the step of every other
+//!   method: Gauss–Seidel over the pairs in a fixed order,
 //!   each pushed apart by inverse mass along the line between them, then
 //!   position-based Coulomb friction on their relative motion since the
 //!   substep began. Pinned vertices do not move. The order is the sorted
@@ -397,6 +400,23 @@ impl SelfContacts {
         slack: f32,
     ) {
         self.find_or_keep(model, x, v, dt, sc, slack, false);
+    }
+
+    /// [`find`](Self::find), or the last step's pairs while they still
+    /// serve (a list made to serve the next steps when the cloth moves
+    /// slowly, see [`SKIN`]): for a method that resolves the pairs a few
+    /// dozen times a step (PBD, after each iteration), where a new search
+    /// every step was most of self-collision's cost.
+    pub(crate) fn find_kept(
+        &mut self,
+        model: &ClothModel,
+        x: &[Vec3A],
+        v: &[Vec3A],
+        dt: f32,
+        sc: SelfCollisionInput<'_>,
+        slack: f32,
+    ) {
+        self.find_or_keep(model, x, v, dt, sc, slack, true);
     }
 
     /// [`find`](Self::find), or, with `reuse`, the last step's pairs while

@@ -19,6 +19,16 @@
 //! [`StepParams::stencil`] is off.
 //! Pinned vertices never move (but their springs still propose positions to
 //! their neighbours).
+//!
+//! A cloth with self-collision has its pairs found once per step, from
+//! where it is and where its velocities take it (as `stiff` does), and
+//! resolved after the prediction and after every [`SELF_COLLISION_EVERY`]
+//! iterations of step 2 (the colliders projected first each time), where
+//! the strain limiting answers their pushes in the iterations that follow
+//! (each push also moves the vertex's velocity, as the proposals do). Only
+//! resolved after the step, the pushes fought the strain limiting of the
+//! next step: a 32² sheet folded in four stretched 98.6 % and left 294
+//! edges through (the stability map's contact cases).
 
 use bevy::math::Vec3A;
 
@@ -26,12 +36,18 @@ use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepParams, StepReport};
+use crate::collision::self_contact::SelfContacts;
 use crate::collision::{PenaltySphere, Shape, project_shapes};
 use crate::model::ClothState;
 use crate::solver::engine::kernels::{PaddedRows, Springs, spring_scales_ends};
 use crate::solver::engine::stencil::pbd::PbdStencilWorkspace;
 
 pub use crate::solver::engine::stencil::pbd::SELF_WEIGHT;
+
+/// Strain-limiting iterations between two passes over self-collision's
+/// pairs (see the module docs): the last pass comes after the last
+/// iteration.
+pub const SELF_COLLISION_EVERY: u32 = 1;
 
 /// Steps a cloth by position-based dynamics with the lab's Jacobi strain
 /// limiting (see the module docs). Spring stiffness is not used. As a
@@ -97,6 +113,8 @@ impl Method for PbdSolver {
             model,
             params,
             spheres,
+            self_collision,
+            contacts,
             ..
         } = input;
         let config = self;
@@ -106,7 +124,7 @@ impl Method for PbdSolver {
             residual: None,
             relative_error: None,
             contacts: 0,
-            self_contacts: None,
+            self_contacts: self_collision.map(|_| 0),
         };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();
@@ -119,6 +137,16 @@ impl Method for PbdSolver {
             velocities: v,
         } = &mut *state;
 
+        // Self-collision's pairs, from where the cloth is and where its
+        // velocities take it, each box grown by the step's fall; the last
+        // step's list while it serves (a new search every step was a third
+        // of the step with self-collision on a resting 64² fold).
+        ws.start.clear();
+        if let Some(sc) = self_collision {
+            let slack = gravity.length() * dt * dt;
+            ws.self_contacts.find_kept(model, x, v, dt, sc, slack);
+            ws.start.extend_from_slice(&x[..n]);
+        }
         for i in 0..n {
             if !pinned[i] {
                 v[i] = v[i] * params.damping + dt * gravity;
@@ -134,16 +162,30 @@ impl Method for PbdSolver {
             .extend(spheres.iter().map(PenaltySphere::as_shape));
 
         // The structure-of-arrays kernels where the springs form a stencil.
+        // With self-collision, the iterations in runs of
+        // `SELF_COLLISION_EVERY`, the pairs resolved before the first and
+        // after each.
+        let run = if self_collision.is_some() {
+            SELF_COLLISION_EVERY
+        } else {
+            config.iterations
+        };
+        if self_collision.is_some() {
+            ws.resolve_self(model, contacts, x, v, 0, config.iterations, dt);
+        }
         if let Some(stencil) = model.topology().stencil().filter(|_| params.stencil) {
-            ws.stencil.load(stencil, x, |i| adjacency.degree(i), pinned);
-            ws.stencil.iterate(
-                params.simd,
-                params.parallel,
-                config.iterations,
-                inv_dt,
-                x,
-                v,
-            );
+            let mut done = 0;
+            while done < config.iterations {
+                let k = run.min(config.iterations - done);
+                ws.stencil.load(stencil, x, |i| adjacency.degree(i), pinned);
+                ws.stencil
+                    .iterate(params.simd, params.parallel, k, inv_dt, x, v);
+                done += k;
+                if self_collision.is_some() {
+                    report.self_contacts =
+                        Some(ws.resolve_self(model, contacts, x, v, done, config.iterations, dt));
+                }
+            }
             report.contacts = project_shapes(model, state, &ws.solids, 0.0, dt) as u32;
             return Ok(report);
         }
@@ -156,7 +198,7 @@ impl Method for PbdSolver {
         ws.inv_weight
             .extend((0..n).map(|i| 1.0 / (SELF_WEIGHT + adjacency.degree(i) as f32)));
         ws.rows.update::<[Vec3A; 2]>(adjacency, springs.len() + 1);
-        for _ in 0..config.iterations {
+        for iteration in 1..=config.iterations {
             let proposals = &mut ws.proposals;
             assert_eq!(x.len(), n);
             spring_scales_ends(Springs::of(model), &ws.coeffs, x, |e, d, half, xa, xb| {
@@ -202,6 +244,11 @@ impl Method for PbdSolver {
                     }
                 }
             }
+            if self_collision.is_some() && (iteration % run == 0 || iteration == config.iterations)
+            {
+                report.self_contacts =
+                    Some(ws.resolve_self(model, contacts, x, v, iteration, config.iterations, dt));
+            }
         }
         report.contacts = project_shapes(model, state, &ws.solids, 0.0, dt) as u32;
         Ok(report)
@@ -226,4 +273,60 @@ pub struct PbdWorkspace {
     stencil: PbdStencilWorkspace,
     /// The step's penalty colliders as solids to project.
     solids: Vec<Shape>,
+    /// Self-collision's pairs for the step.
+    self_contacts: SelfContacts,
+    /// With self-collision: where the vertices were at the step's start.
+    start: Vec<Vec3A>,
+    /// Scratch: the positions before a pass over the pairs.
+    before: Vec<Vec3A>,
+}
+
+impl PbdWorkspace {
+    /// After `done` of the step's `iterations`: the free vertices projected
+    /// out of the `solids` (where they are, with friction), then one pass
+    /// over the step's self-collision pairs (parting those that started
+    /// too close as far as the step has got), each push added to the
+    /// vertex's velocity over `dt`. Returns the pairs that were touching.
+    #[allow(clippy::too_many_arguments)]
+    fn resolve_self(
+        &mut self,
+        model: &crate::model::ClothModel,
+        solids: &[Shape],
+        x: &mut [Vec3A],
+        v: &mut [Vec3A],
+        done: u32,
+        iterations: u32,
+        dt: f32,
+    ) -> u32 {
+        let n = self.start.len().min(x.len()).min(v.len());
+        let inv_dt = 1.0 / dt;
+        // The colliders first, so the pairs push from where they hold the
+        // cloth (after the step, the ground's projection lifted the bottom
+        // layer into the next, and the sheet tangled).
+        for (i, (x, v)) in x[..n].iter_mut().zip(&mut v[..n]).enumerate() {
+            if model.pinned()[i] {
+                continue;
+            }
+            for solid in solids {
+                if let Some((normal, depth)) = solid.contact(*x, 0.0) {
+                    *x += depth * normal;
+                    *v += depth * inv_dt * normal;
+                    crate::collision::friction(x, v, normal, depth * inv_dt, solid.friction(), dt);
+                }
+            }
+        }
+        self.before.clear();
+        self.before.extend_from_slice(&x[..n]);
+        let start = &self.start;
+        let touching = self.self_contacts.resolve_substep(
+            model,
+            &mut x[..n],
+            |i| start[i],
+            done as f32 / iterations as f32,
+        );
+        for ((v, &x), &b) in v[..n].iter_mut().zip(&x[..n]).zip(&self.before) {
+            *v += (x - b) * inv_dt;
+        }
+        touching
+    }
 }
