@@ -144,7 +144,8 @@ impl Method for PbdSolver {
         ws.start.clear();
         if let Some(sc) = self_collision {
             let slack = gravity.length() * dt * dt;
-            ws.self_contacts.find_kept(model, x, v, dt, sc, slack);
+            ws.self_contacts
+                .find_or_keep(model, x, v, dt, sc, slack, true);
             ws.start.extend_from_slice(&x[..n]);
         }
         for i in 0..n {
