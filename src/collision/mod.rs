@@ -479,14 +479,28 @@ pub fn project_contacts<S>(
     dt: f32,
     contact: impl Fn(&S, Vec3A) -> Option<(Vec3A, f32, f32)>,
 ) -> usize {
-    let pinned = model.pinned();
-    let inv_dt = 1.0 / dt;
-    let mut count = 0;
     let ClothState {
         positions,
         velocities,
     } = state;
-    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+    project_contacts_on(model, positions, velocities, solids, dt, contact)
+}
+
+/// [`project_contacts`] on positions `x` and velocities `v` (the first
+/// `model`'s vertex count of them), for a method that projects inside its
+/// step.
+pub(crate) fn project_contacts_on<S>(
+    model: &ClothModel,
+    x: &mut [Vec3A],
+    v: &mut [Vec3A],
+    solids: &[S],
+    dt: f32,
+    contact: impl Fn(&S, Vec3A) -> Option<(Vec3A, f32, f32)>,
+) -> usize {
+    let pinned = model.pinned();
+    let inv_dt = 1.0 / dt;
+    let mut count = 0;
+    for (i, (x, v)) in x.iter_mut().zip(v.iter_mut()).enumerate() {
         if pinned[i] {
             continue;
         }
@@ -522,14 +536,7 @@ pub(crate) fn inverse_pushes<const N: usize>(
 /// (per unit mass) `impulse`: takes up to `μ·impulse` from the tangential
 /// velocity, and the matching displacement from the position.
 #[inline]
-pub(crate) fn friction(
-    x: &mut Vec3A,
-    v: &mut Vec3A,
-    normal: Vec3A,
-    impulse: f32,
-    mu: f32,
-    dt: f32,
-) {
+fn friction(x: &mut Vec3A, v: &mut Vec3A, normal: Vec3A, impulse: f32, mu: f32, dt: f32) {
     let tangential = *v - v.dot(normal) * normal;
     let speed = tangential.length();
     if speed > 0.0 && mu > 0.0 {

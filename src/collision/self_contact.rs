@@ -53,10 +53,10 @@
 //! went through) back to the other end's side, [`UNTANGLE_MARGIN`] of the
 //! thickness past the plane, the triangle's corners taking their share by
 //! inverse mass, as a point–triangle contact would; the pairs do the rest
-//! in the next step. It costs the check, about a thirteenth of a `stiff`
-//! step with self-collision (4.4 ms on a 64² sheet folded in four, 1 ms on
-//! a 32² sheet), which would be ten steps of the other methods, so they
-//! leave it. Edges through another cloth are not taken back.
+//! in the next step. It costs the exact check, a small share of a `stiff`
+//! step with self-collision but several steps of the other methods, so
+//! they leave it (the CHANGELOG has the measurements). Edges through
+//! another cloth are not taken back.
 //!
 //! # Cloth against cloth
 //!
@@ -408,8 +408,8 @@ impl SelfContacts {
     /// resolved a few times a step (after the step); `stiff` resolves them
     /// in every substep, where the skin's extra pairs cost more than the
     /// search. PBD, which resolves them after each of its iterations, keeps
-    /// the list too: a new search every step took 7.7 ms of a resting 64²
-    /// fold's step, 6.1 ms with the list kept.
+    /// the list too: there the search, not the skin's extra pairs, was the
+    /// larger cost.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn find_or_keep(
         &mut self,

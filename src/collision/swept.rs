@@ -83,8 +83,7 @@ impl Shape {
     // were inlined into `project_swept`'s vertex loop hung on how the
     // crate's codegen units were cut, and an unrelated call added to
     // `XpbdSolver::advance` left them out of line, the loop spilling to the
-    // stack: Chebyshev's folded 64² step 360 → 440 µs (perf: 3.3×
-    // `project_swept`'s samples). With it, 376 µs, within the noise.
+    // stack (the CHANGELOG has the measurement).
     #[inline]
     pub fn signed_distance(&self, x: Vec3A) -> (f32, Vec3A) {
         match self {

@@ -22,8 +22,8 @@
 //!
 //! A cloth with self-collision has its pairs found once per step, from
 //! where it is and where its velocities take it (as `stiff` does), and
-//! resolved after the prediction and after every [`SELF_COLLISION_EVERY`]
-//! iterations of step 2 (the colliders projected first each time), where
+//! resolved after the prediction and after each iteration of step 2 (the
+//! colliders projected first each time), where
 //! the strain limiting answers their pushes in the iterations that follow
 //! (each push also moves the vertex's velocity, as the proposals do). Only
 //! resolved after the step, the pushes fought the strain limiting of the
@@ -37,17 +37,12 @@ use bevy::reflect::std_traits::ReflectDefault;
 
 use super::{LAB_ITERATIONS, Method, ParamError, StepError, StepInput, StepParams, StepReport};
 use crate::collision::self_contact::SelfContacts;
-use crate::collision::{PenaltySphere, Shape, project_shapes};
+use crate::collision::{PenaltySphere, Shape, project_contacts_on, project_shapes};
 use crate::model::ClothState;
 use crate::solver::engine::kernels::{PaddedRows, Springs, spring_scales_ends};
 use crate::solver::engine::stencil::pbd::PbdStencilWorkspace;
 
 pub use crate::solver::engine::stencil::pbd::SELF_WEIGHT;
-
-/// Strain-limiting iterations between two passes over self-collision's
-/// pairs (see the module docs): the last pass comes after the last
-/// iteration.
-pub const SELF_COLLISION_EVERY: u32 = 1;
 
 /// Steps a cloth by position-based dynamics with the lab's Jacobi strain
 /// limiting (see the module docs). Spring stiffness is not used. As a
@@ -163,11 +158,10 @@ impl Method for PbdSolver {
             .extend(spheres.iter().map(PenaltySphere::as_shape));
 
         // The structure-of-arrays kernels where the springs form a stencil.
-        // With self-collision, the iterations in runs of
-        // `SELF_COLLISION_EVERY`, the pairs resolved before the first and
-        // after each.
+        // With self-collision, the pairs resolved before the first
+        // iteration and after each (the kernels run one at a time).
         let run = if self_collision.is_some() {
-            SELF_COLLISION_EVERY
+            1
         } else {
             config.iterations
         };
@@ -245,8 +239,7 @@ impl Method for PbdSolver {
                     }
                 }
             }
-            if self_collision.is_some() && (iteration % run == 0 || iteration == config.iterations)
-            {
+            if self_collision.is_some() {
                 report.self_contacts =
                     Some(ws.resolve_self(model, contacts, x, v, iteration, config.iterations, dt));
             }
@@ -304,18 +297,10 @@ impl PbdWorkspace {
         // The colliders first, so the pairs push from where they hold the
         // cloth (after the step, the ground's projection lifted the bottom
         // layer into the next, and the sheet tangled).
-        for (i, (x, v)) in x[..n].iter_mut().zip(&mut v[..n]).enumerate() {
-            if model.pinned()[i] {
-                continue;
-            }
-            for solid in solids {
-                if let Some((normal, depth)) = solid.contact(*x, 0.0) {
-                    *x += depth * normal;
-                    *v += depth * inv_dt * normal;
-                    crate::collision::friction(x, v, normal, depth * inv_dt, solid.friction(), dt);
-                }
-            }
-        }
+        project_contacts_on(model, &mut x[..n], &mut v[..n], solids, dt, |s, x| {
+            s.contact(x, 0.0)
+                .map(|(normal, depth)| (normal, depth, s.friction()))
+        });
         self.before.clear();
         self.before.extend_from_slice(&x[..n]);
         let start = &self.start;
