@@ -131,7 +131,9 @@
 //!   ([`collision::self_contact`]; [`SelfCollision::for_model`] takes 0.9
 //!   of the shortest rest edge, where the surface cannot pass through
 //!   itself). `stiff` keeps them apart in every substep, PBD after each of
-//!   its iterations; every other method gets it after its step, which helps but does not guarantee it (a
+//!   its iterations; `pd`, `pd-anderson`, `newton` and `exact` make the
+//!   pairs penalty terms of their objective, then resolve them after the
+//!   step; every other method gets it after its step, which helps but does not guarantee it (a
 //!   vertex can move further than the thickness in one step). A bad setting
 //!   is a [`SelfCollisionError`], logged once, and the cloth runs without
 //!   it. Two cloths that both have one keep off each other: each step sees

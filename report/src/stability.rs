@@ -464,9 +464,11 @@ fn contact_section(
     writeln!(
         md,
         "Cotton at 60 Hz, stepped as the plugin steps it: self-collision (thickness 0.9 of \
-         the shortest edge, friction 0.3) in `stiff`'s substeps and after the other methods' \
-         steps; the colliders swept after every step, and moved through `stiff`'s substeps. \
-         The exact method has no contact inside its step either, so there is no reference: \
+         the shortest edge, friction 0.3) in `stiff`'s substeps, after each of PBD's \
+         iterations, as penalty terms of the objective of `pd`, `pd-anderson`, `newton` and \
+         `exact` (and after their step), and after the other methods' steps; the colliders \
+         swept after every step, and moved through `stiff`'s substeps. The exact method's \
+         contacts and pairs are penalties, not the position-based ones, so there is no reference: \
          a cell is judged by what a player would see. **Folded**: a {0}² sheet of 1 m folded \
          in four (layers 1.3 thicknesses apart) dropped 5 cm onto the ground, {1} s: the exact \
          check's count of mesh edges through one of the sheet's own triangles, the most after \

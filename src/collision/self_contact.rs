@@ -31,7 +31,8 @@
 //!   strain-limiting iteration of PBD (with the colliders projected first:
 //!   only after its step, the pairs fought its strain limiting and a 32²
 //!   sheet folded in four tangled), and after the step of every other
-//!   method: Gauss–Seidel over the pairs in a fixed order,
+//!   method (`pd`'s and Newton's also take them into their solve as
+//!   penalty terms, `PairTerms`): Gauss–Seidel over the pairs in a fixed order,
 //!   each pushed apart by inverse mass along the line between them, then
 //!   position-based Coulomb friction on their relative motion since the
 //!   substep began. Pinned vertices do not move. The order is the sorted
@@ -78,6 +79,7 @@ use crate::model::{ClothModel, ClothState};
 
 mod check;
 mod layers;
+mod objective;
 mod substeps;
 
 pub(crate) use check::untangle;
@@ -85,6 +87,7 @@ pub use check::{
     IntersectionCheck, UNTANGLE_MARGIN, count_crossings, count_intersections, ray_meets,
 };
 pub use layers::ClothLayers;
+pub(crate) use objective::PairTerms;
 pub use substeps::SUBSTEP_SKIN;
 
 /// A cloth that collides with itself: add it to a cloth entity (any

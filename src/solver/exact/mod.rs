@@ -7,7 +7,10 @@
 //! `Φ(x) = 1/(2dt²)‖x − x̃‖²_M + Σ_springs ½k(l − L)² − Σ m g·x (+ Σ_contacts ½c d²)`
 //!
 //! with `x̃ = x + dt·damping·v` (the lab's prediction), starting from
-//! `x = x̃`. The contact terms are the penalty spheres and, with
+//! `x = x̃`. A cloth with a [`SelfCollision`](crate::SelfCollision) adds its
+//! pairs' terms `½c(min − l)²` at the same `c` (only their diagonal blocks
+//! enter the Hessian: the pairs change every step and are not in its
+//! pattern). The contact terms are the penalty spheres and, with
 //! [`ExactSolver::contacts`] (the default), the solids the plugin projects
 //! after the step ([`StepInput::contacts`]) at a stiffness `c` of
 //! [`ExactSolver::CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`.
@@ -52,6 +55,7 @@ use super::params::check_budget;
 use super::{
     ConvergenceSums, Method, ParamError, SolveError, StepError, StepInput, StepParams, StepReport,
 };
+use crate::collision::self_contact::{PairTerms, SelfContacts};
 use crate::collision::{PenaltySphere, PenaltySurface};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
@@ -168,18 +172,36 @@ impl Method for ExactSolver {
             spheres,
             contacts,
             skin: _,
-            self_collision: _,
+            self_collision,
             contact_motion: _,
         } = input;
         let config = self;
         let n = model.vertex_count();
+        let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
+        let contact_stiffness =
+            Self::CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
+        // Self-collision's pairs as terms of the objective (the plugin's
+        // pass after the step then has little left to move).
+        match self_collision {
+            Some(sc) => {
+                ws.self_contacts.find_or_keep(
+                    model,
+                    &state.positions,
+                    &state.velocities,
+                    params.dt as f32,
+                    sc,
+                    0.0,
+                    true,
+                );
+                ws.pairs.fill(&ws.self_contacts, contact_stiffness);
+            }
+            None => ws.pairs.terms.clear(),
+        }
         // The penalty spheres, and the contacts as penalties.
         ws.penalties.clear();
         ws.penalties.extend_from_slice(spheres);
         if config.contacts && !contacts.is_empty() {
-            let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
-            let stiffness = Self::CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
-            let stiffness = stiffness.min(f64::from(f32::MAX)) as f32;
+            let stiffness = contact_stiffness.min(f64::from(f32::MAX)) as f32;
             ws.penalties.extend(
                 contacts
                     .iter()
@@ -240,6 +262,7 @@ impl Method for ExactSolver {
             );
         }
         let friction = (&ws.friction[..], eps);
+        let pairs = &ws.pairs;
         let mut report = ExactReport::default();
         let g0 = gradient(
             model,
@@ -247,7 +270,7 @@ impl Method for ExactSolver {
             &ws.x,
             &ws.x_tilde,
             params,
-            (spheres, friction),
+            (spheres, friction, pairs),
             &mut ws.gradient,
         );
         let mut g_norm = g0;
@@ -279,6 +302,7 @@ impl Method for ExactSolver {
                 for f in friction.0 {
                     system.add_to_diagonal(f.vertex, &(f.hessian(ws.x[f.vertex], eps) * h2));
                 }
+                pairs.diagonal(&ws.x, |i, block| system.add_to_diagonal(i, &(block * h2)));
                 for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
                     *d = -h2 * g;
                 }
@@ -311,7 +335,13 @@ impl Method for ExactSolver {
                 break;
             }
             // Backtracking (Armijo) line search along the Newton direction.
-            let phi = objective(model, &ws.x, &ws.x_tilde, params, (spheres, friction));
+            let phi = objective(
+                model,
+                &ws.x,
+                &ws.x_tilde,
+                params,
+                (spheres, friction, pairs),
+            );
             let slope: f64 = ws
                 .gradient
                 .iter()
@@ -332,8 +362,13 @@ impl Method for ExactSolver {
                     }
                 }
                 if !line_search
-                    || objective(model, &ws.trial, &ws.x_tilde, params, (spheres, friction))
-                        <= phi + 1e-4 * alpha * slope
+                    || objective(
+                        model,
+                        &ws.trial,
+                        &ws.x_tilde,
+                        params,
+                        (spheres, friction, pairs),
+                    ) <= phi + 1e-4 * alpha * slope
                 {
                     accepted = true;
                     break;
@@ -355,7 +390,7 @@ impl Method for ExactSolver {
                 &ws.x,
                 &ws.x_tilde,
                 params,
-                (spheres, friction),
+                (spheres, friction, pairs),
                 &mut ws.gradient,
             );
             last_ratio = Some(if before > 0.0 { g_norm / before } else { 0.0 });
@@ -453,6 +488,9 @@ pub struct ExactWorkspace {
     /// The contacts the last step ended in, with friction: `(vertex,
     /// penalty, μ·λ, normal)`; and the penalty count they index.
     ended_in: (Vec<(u32, u32, f64, DVec3)>, usize),
+    /// Self-collision's search, and its pairs as terms of the objective.
+    self_contacts: SelfContacts,
+    pairs: PairTerms,
 }
 
 /// The speed below which friction holds a vertex, per metre of cloth size
@@ -581,17 +619,22 @@ fn newton_error(
     sums.relative_error(model, params.dt)
 }
 
+/// The objective's terms beyond inertia, gravity and springs: penalties,
+/// friction (with its `ε`) and self-collision's pairs.
+type Terms<'a> = (&'a [PenaltySphere], (&'a [Friction], f64), &'a PairTerms);
+
 /// `Φ(x)` in `f64`.
 fn objective(
     model: &ClothModel,
     x: &[DVec3],
     x_tilde: &[DVec3],
     params: &StepParams,
-    (spheres, (friction, eps)): (&[PenaltySphere], (&[Friction], f64)),
+    (spheres, (friction, eps), pairs): Terms<'_>,
 ) -> f64 {
     let inv_dt2 = 1.0 / (params.dt * params.dt);
     let g = params.gravity.as_dvec3();
     let mut e: f64 = friction.iter().map(|f| f.energy(x[f.vertex], eps)).sum();
+    e += pairs.energy(x);
     for (i, &m) in model.masses().iter().enumerate() {
         if model.pinned()[i] {
             continue;
@@ -619,7 +662,7 @@ fn gradient(
     x: &[DVec3],
     x_tilde: &[DVec3],
     params: &StepParams,
-    (spheres, (friction, eps)): (&[PenaltySphere], (&[Friction], f64)),
+    (spheres, (friction, eps), pairs): Terms<'_>,
     out: &mut [f64],
 ) -> f64 {
     out.fill(0.0);
@@ -645,6 +688,7 @@ fn gradient(
     for f in friction {
         add(f.vertex, f.gradient(x[f.vertex], eps), out);
     }
+    pairs.gradient(x, |i, g| add(i, g, out));
     for s in model.topology().springs() {
         let (a, b) = (s.a as usize, s.b as usize);
         let d = x[a] - x[b];

@@ -215,6 +215,24 @@ impl ProjectiveWorkspace {
                 }
             }
         }
+        // Self-collision's pairs: each end's diagonal takes `c` per pair it
+        // is in (the pair's off-diagonal blocks left out: the pairs change
+        // from step to step and are not in `S`'s pattern).
+        self.pair_k.clear();
+        if !self.pairs.terms.is_empty() {
+            self.pair_k.resize(m, 0.0);
+        }
+        for t in &self.pairs.terms {
+            let ends = [Some(t.a), t.own_b()];
+            for i in ends.into_iter().flatten() {
+                if let Some(&f) = self.dof_of.get(i).filter(|&&f| f != PINNED) {
+                    self.pair_k[f as usize] += self.pairs.c;
+                }
+            }
+        }
+        for (w, p) in self.wanted_k.iter_mut().zip(&self.pair_k) {
+            *w += p;
+        }
         if self.wanted_k == self.contact_k {
             return Ok(());
         }
@@ -253,6 +271,7 @@ impl ProjectiveWorkspace {
         spheres: &[PenaltySphere],
         sums: Option<&[Vec3A]>,
     ) -> Result<bool, SolveError> {
+        self.pair_forces(x);
         if self.multigrid.is_some() {
             return Ok(self.global_multigrid(model, x, spheres, sums));
         }
@@ -269,6 +288,8 @@ impl ProjectiveWorkspace {
             track,
             friction,
             friction_at,
+            pair_k,
+            pair_force,
             ..
         } = self;
         let parts = RhsParts {
@@ -281,6 +302,7 @@ impl ProjectiveWorkspace {
             sums,
             spheres,
             friction: (friction, friction_at),
+            pairs: (pair_k, pair_force),
             x,
         };
         // A simplicial factor: the right-hand side written straight into
@@ -288,7 +310,7 @@ impl ProjectiveWorkspace {
         // back), sparing `rhs` and `solve3`'s two permuted copies.
         if let Some(lanes) = cholesky.lanes() {
             let (order, b) = lanes.rhs_mut();
-            match sums.filter(|_| spheres.is_empty()) {
+            match sums.filter(|_| spheres.is_empty() && pair_k.is_empty()) {
                 // The common case on its own loop: through `parts.at` the
                 // compiler keeps the general case's branches in it.
                 Some(sums) => {
@@ -356,6 +378,9 @@ pub(super) struct RhsParts<'a> {
     sums: Option<&'a [Vec3A]>,
     spheres: &'a [PenaltySphere],
     friction: (&'a [Friction], &'a [u32]),
+    /// Self-collision's pairs: each free vertex's weight, each vertex's
+    /// force (empty without pairs).
+    pairs: (&'a [f64], &'a [Vec3A]),
     x: &'a [Vec3A],
 }
 
@@ -393,6 +418,11 @@ impl RhsParts<'_> {
         // Friction's force rides on its contact's `c·p` (see `friction`).
         if let Some((term, c)) = term_at(self.friction, self.near, f) {
             acc += term.force(self.x[i], c).as_dvec3();
+        }
+        // A pair's `c·x` and its force at the iterate (`c·p` of the pair
+        // projected apart, as a sphere's).
+        if let (Some(&c), Some(&force)) = (self.pairs.0.get(f), self.pairs.1.get(i)) {
+            acc += c * self.x[i].as_dvec3() + force.as_dvec3();
         }
         acc
     }
@@ -442,6 +472,9 @@ impl ProjectiveWorkspace {
             let terms = (&self.friction[..], &self.friction_at[..]);
             if let Some((term, c)) = term_at(terms, &self.near, f) {
                 r += term.force(x[i], c);
+            }
+            if let Some(&force) = self.pair_force.get(i) {
+                r += force;
             }
             if track {
                 // In `f32`, as `r` is (an `f64` sum was measurably slower

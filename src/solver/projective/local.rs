@@ -77,7 +77,19 @@ impl ProjectiveWorkspace {
                 }
             }
         }
-        energy
+        energy + self.pairs.energy(x)
+    }
+
+    /// Self-collision's pair forces at `x` into `pair_force` (left empty
+    /// without pairs).
+    pub(super) fn pair_forces(&mut self, x: &[Vec3A]) {
+        self.pair_force.clear();
+        if self.pairs.terms.is_empty() {
+            return;
+        }
+        self.pair_force.resize(x.len(), Vec3A::ZERO);
+        let force = &mut self.pair_force;
+        self.pairs.gradient(x, |i, g| force[i] -= g.as_vec3a());
     }
 }
 

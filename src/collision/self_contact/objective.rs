@@ -1,0 +1,216 @@
+//! The step's pairs as terms of an implicit method's objective: each pair
+//! closer than its least distance `min` costs `½c(min − l)²`, `l` its
+//! distance, so Newton's iteration (`newton`, `exact`) keeps the layers
+//! apart *inside* its solve, where its stiff springs can follow, instead of
+//! only in the pushes after its step (which a stiff method's springs undo
+//! and fight: the stability map's folded sheet went through itself, 377
+//! edges with `newton`, stretched past 100 %).
+
+use bevy::math::{DMat3, DVec3, Vec3A};
+
+use super::{SelfContacts, UNTANGLE};
+
+/// A position in `f32` (the plugin's state, projective dynamics) or `f64`
+/// (Newton's iterate).
+pub(crate) trait Position: Copy {
+    /// In `f64`.
+    fn f64(self) -> DVec3;
+}
+
+impl Position for DVec3 {
+    #[inline]
+    fn f64(self) -> DVec3 {
+        self
+    }
+}
+
+impl Position for Vec3A {
+    #[inline]
+    fn f64(self) -> DVec3 {
+        self.as_dvec3()
+    }
+}
+
+/// One pair's other end: a vertex of the cloth (an unknown of the solve),
+/// or another cloth's vertex, which stands still through the step.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum PairEnd {
+    /// The cloth's own vertex.
+    Own(usize),
+    /// Another cloth's vertex, where it was at the step's start.
+    Fixed(DVec3),
+}
+
+/// A pair of the step as a term of the objective.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PairTerm {
+    /// The cloth's vertex.
+    pub a: usize,
+    /// The other end.
+    pub b: PairEnd,
+    /// The distance below which the term pushes: the pair's least distance,
+    /// or, for a pair already closer than that at the step's start, that
+    /// distance plus [`UNTANGLE`] of it (parted gradually, as the
+    /// position-based pass parts it).
+    pub min: f64,
+}
+
+/// The step's pair terms at stiffness `c` (a penalty's, per metre).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct PairTerms {
+    /// The terms.
+    pub terms: Vec<PairTerm>,
+    /// Their stiffness.
+    pub c: f64,
+}
+
+impl PairTerm {
+    /// The other end, if it is the cloth's own vertex.
+    pub(crate) fn own_b(&self) -> Option<usize> {
+        match self.b {
+            PairEnd::Own(b) => Some(b),
+            PairEnd::Fixed(_) => None,
+        }
+    }
+}
+
+impl PairTerms {
+    /// The pairs of `contacts`' last search, at stiffness `c`.
+    pub(crate) fn fill(&mut self, contacts: &SelfContacts, c: f64) {
+        self.c = c;
+        self.terms.clear();
+        let own = contacts.own;
+        self.terms.extend(contacts.pairs.iter().map(|p| {
+            let b = p.b as usize;
+            PairTerm {
+                a: p.a as usize,
+                b: if b < own {
+                    PairEnd::Own(b)
+                } else {
+                    PairEnd::Fixed(contacts.others[b - own].position.as_dvec3())
+                },
+                min: f64::from(p.min.min(p.overlap + UNTANGLE * p.min)),
+            }
+        }));
+    }
+
+    /// Each pushing term at `x`: `(a, b, n, l, min)`, with `n` the unit
+    /// vector from `b` to `a` (skipped where the two coincide).
+    fn pushing<'s, P: Position + 's>(
+        &'s self,
+        x: &'s [P],
+    ) -> impl Iterator<Item = (usize, Option<usize>, DVec3, f64, f64)> + 's {
+        self.terms.iter().filter_map(move |t| {
+            let (b, xb) = match t.b {
+                PairEnd::Own(b) => (Some(b), x.get(b)?.f64()),
+                PairEnd::Fixed(p) => (None, p),
+            };
+            let d = x.get(t.a)?.f64() - xb;
+            let l2 = d.length_squared();
+            if l2 >= t.min * t.min {
+                return None;
+            }
+            let l = l2.sqrt();
+            let n = d.try_normalize()?;
+            Some((t.a, b, n, l, t.min))
+        })
+    }
+
+    /// Their energy at `x`.
+    pub(crate) fn energy(&self, x: &[impl Position]) -> f64 {
+        self.pushing(x)
+            .map(|(.., l, min)| 0.5 * self.c * (min - l) * (min - l))
+            .sum()
+    }
+
+    /// Adds their gradient at `x` through `add(vertex, gradient)`.
+    pub(crate) fn gradient(&self, x: &[impl Position], mut add: impl FnMut(usize, DVec3)) {
+        for (a, b, n, l, min) in self.pushing(x) {
+            let g = n * (self.c * (min - l));
+            add(a, -g);
+            if let Some(b) = b {
+                add(b, g);
+            }
+        }
+    }
+
+    /// Adds the diagonal blocks of their Hessian at `x`, projected to be
+    /// positive semi-definite (`c·nnᵀ`: the compressed pair's negative
+    /// across term dropped), through `add(vertex, block)`. The pair's
+    /// off-diagonal blocks are left out: the pairs change every step and
+    /// are not in the springs' sparsity pattern, so the Newton direction is
+    /// a quasi-Newton one there (each end sees the other held; still a
+    /// descent direction, the line search keeps the iteration converging).
+    pub(crate) fn diagonal(&self, x: &[impl Position], mut add: impl FnMut(usize, DMat3)) {
+        for (a, b, n, ..) in self.pushing(x) {
+            let block = DMat3::from_cols(n * n.x, n * n.y, n * n.z) * self.c;
+            add(a, block);
+            if let Some(b) = b {
+                add(b, block);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn terms() -> PairTerms {
+        PairTerms {
+            terms: vec![
+                PairTerm {
+                    a: 0,
+                    b: PairEnd::Own(1),
+                    min: 0.5,
+                },
+                PairTerm {
+                    a: 2,
+                    b: PairEnd::Fixed(DVec3::new(0.0, 0.3, 0.1)),
+                    min: 0.4,
+                },
+            ],
+            c: 7.0,
+        }
+    }
+
+    /// The gradient is the energy's (central differences), and a pair
+    /// farther apart than its `min` costs and pushes nothing.
+    #[test]
+    fn the_gradient_is_the_energys_and_apart_pairs_cost_nothing() {
+        let t = terms();
+        let x = [
+            DVec3::new(0.1, 0.0, 0.0),
+            DVec3::new(0.3, 0.2, -0.1),
+            DVec3::new(0.0, 0.1, 0.2),
+        ];
+        assert!(t.energy(&x) > 0.0);
+        let mut g = [DVec3::ZERO; 3];
+        t.gradient(&x, |i, v| g[i] += v);
+        let h = 1e-6;
+        for i in 0..3 {
+            for k in 0..3 {
+                let (mut plus, mut minus) = (x, x);
+                plus[i][k] += h;
+                minus[i][k] -= h;
+                let numeric = (t.energy(&plus) - t.energy(&minus)) / (2.0 * h);
+                assert!(
+                    (numeric - g[i][k]).abs() < 1e-6,
+                    "{i} {k}: {numeric} {}",
+                    g[i][k]
+                );
+            }
+        }
+        // The diagonal blocks: `c·nnᵀ` on both ends of the own pair, one
+        // end of the fixed one.
+        let mut blocks = [DMat3::ZERO; 3];
+        t.diagonal(&x, |i, b| blocks[i] += b);
+        for b in &blocks {
+            assert!((b.x_axis.x + b.y_axis.y + b.z_axis.z - t.c).abs() < 1e-12);
+        }
+        let apart = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 0.3, 0.6)];
+        assert_eq!(t.energy(&apart), 0.0);
+        t.gradient(&apart, |_, _| panic!("an apart pair pushed"));
+        t.diagonal(&apart, |_, _| panic!("an apart pair has a Hessian"));
+    }
+}
