@@ -8,7 +8,8 @@
 
 use bevy::math::{DMat3, DVec3, Vec3A};
 
-use super::{SelfContacts, UNTANGLE};
+use super::{SelfCollisionInput, SelfContacts, UNTANGLE};
+use crate::model::{ClothModel, ClothState};
 
 /// A position in `f32` (the plugin's state, projective dynamics) or `f64`
 /// (Newton's iterate).
@@ -55,13 +56,18 @@ pub(crate) struct PairTerm {
     pub min: f64,
 }
 
-/// The step's pair terms at stiffness `c` (a penalty's, per metre).
+/// The step's pair terms at stiffness `c` (a penalty's, per metre), and
+/// the search that finds them.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct PairTerms {
     /// The terms.
     pub terms: Vec<PairTerm>,
     /// Their stiffness.
     pub c: f64,
+    /// The pair search, its list kept from step to step while the cloth
+    /// moves slowly (the terms push only where a pair is closer than its
+    /// `min`, so the list's extra pairs cost a distance each).
+    search: SelfContacts,
 }
 
 impl PairTerm {
@@ -75,10 +81,25 @@ impl PairTerm {
 }
 
 impl PairTerms {
-    /// The pairs of `contacts`' last search, at stiffness `c`.
-    pub(crate) fn fill(&mut self, contacts: &SelfContacts, c: f64) {
+    /// The step's terms at stiffness `c` for `model` at `state`, stepped
+    /// by `dt`: the pairs [`SelfContacts::find_or_keep`] finds, or none
+    /// without self-collision.
+    pub(crate) fn update(
+        &mut self,
+        model: &ClothModel,
+        state: &ClothState,
+        dt: f64,
+        sc: Option<SelfCollisionInput<'_>>,
+        c: f64,
+    ) {
         self.c = c;
         self.terms.clear();
+        let Some(sc) = sc else {
+            return;
+        };
+        let contacts = &mut self.search;
+        let (x, v) = (&state.positions, &state.velocities);
+        contacts.find_or_keep(model, x, v, dt as f32, sc, 0.0, true);
         let own = contacts.own;
         self.terms.extend(contacts.pairs.iter().map(|p| {
             let b = p.b as usize;
@@ -171,6 +192,7 @@ mod tests {
                 },
             ],
             c: 7.0,
+            ..PairTerms::default()
         }
     }
 

@@ -55,7 +55,7 @@ use super::params::check_budget;
 use super::{
     ConvergenceSums, Method, ParamError, SolveError, StepError, StepInput, StepParams, StepReport,
 };
-use crate::collision::self_contact::{PairTerms, SelfContacts};
+use crate::collision::self_contact::PairTerms;
 use crate::collision::{PenaltySphere, PenaltySurface};
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
@@ -182,21 +182,8 @@ impl Method for ExactSolver {
             Self::CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
         // Self-collision's pairs as terms of the objective (the plugin's
         // pass after the step then has little left to move).
-        match self_collision {
-            Some(sc) => {
-                ws.self_contacts.find_or_keep(
-                    model,
-                    &state.positions,
-                    &state.velocities,
-                    params.dt as f32,
-                    sc,
-                    0.0,
-                    true,
-                );
-                ws.pairs.fill(&ws.self_contacts, contact_stiffness);
-            }
-            None => ws.pairs.terms.clear(),
-        }
+        let c = contact_stiffness;
+        ws.pairs.update(model, state, params.dt, self_collision, c);
         // The penalty spheres, and the contacts as penalties.
         ws.penalties.clear();
         ws.penalties.extend_from_slice(spheres);
@@ -488,8 +475,7 @@ pub struct ExactWorkspace {
     /// The contacts the last step ended in, with friction: `(vertex,
     /// penalty, μ·λ, normal)`; and the penalty count they index.
     ended_in: (Vec<(u32, u32, f64, DVec3)>, usize),
-    /// Self-collision's search, and its pairs as terms of the objective.
-    self_contacts: SelfContacts,
+    /// Self-collision's pairs as terms of the objective.
     pairs: PairTerms,
 }
 

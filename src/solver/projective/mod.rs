@@ -97,8 +97,8 @@
 //!
 //! **Self-collision**: a cloth with a [`SelfCollision`](crate::SelfCollision)
 //! makes its step's pairs terms too, `c/2 ‖(x_a − x_b) − p‖²` with `p` the
-//! pair pushed apart to its least distance, at the contacts' `c`
-//! ([`PD_CONTACT_STIFFNESS`]): each end gets `c` per pair on its diagonal
+//! pair pushed apart to its least distance, at a stiffness `c` of
+//! [`PD_PAIR_STIFFNESS`] times the heaviest vertex's `m/dt²`: each end gets `c` per pair on its diagonal
 //! (the pair's off-diagonal blocks are left out: the pairs change every
 //! step and are not in `S`'s pattern, so the other end is taken from the
 //! iterate, a Jacobi split) and `c·x + f` on its right-hand side. While
@@ -124,7 +124,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use super::chebyshev::{Rho, chebyshev_omega, rho_from_update_norms, validate_chebyshev};
 use super::{ConvergenceSums, Method, ParamError, StepError, StepInput, StepParams, StepReport};
 use crate::collision::PenaltySphere;
-use crate::collision::self_contact::{PairTerms, SelfContacts};
+use crate::collision::self_contact::PairTerms;
 use crate::model::{ClothModel, ClothState};
 use crate::solver::engine::cholesky::SparseCholesky;
 use crate::solver::engine::kernels::Springs;
@@ -143,6 +143,15 @@ use global::Solution;
 use multigrid::{FineStencil, Multigrid};
 
 use early_stop::EarlyStop;
+
+/// The stiffness of a self-collision pair in projective dynamics'
+/// objective, in units of the heaviest vertex's `m/dt²`: ten times a
+/// contact's ([`PD_CONTACT_STIFFNESS`]), Newton's. At a contact's, the 10
+/// iterations left pairs pressed together that the pass after the step then
+/// pushed apart against the springs (the drape's second sheet landing:
+/// 49 % stretch; 23 % at this stiffness, 25 % and 37 % at 30 and 100
+/// times a contact's; `pd-anderson` 32 % → 6.2 %).
+pub const PD_PAIR_STIFFNESS: f64 = 1e3;
 
 /// The interactive iteration budget of projective dynamics: each iteration
 /// costs several of the lab's Jacobi iterations (`docs/perf.md`), and 10
@@ -453,10 +462,9 @@ pub struct ProjectiveWorkspace {
     friction: Vec<friction::Friction>,
     friction_at: Vec<u32>,
     ended_in: friction::EndedIn,
-    /// Self-collision's search and its pairs as terms of the objective;
-    /// per free vertex the pairs' weight on its diagonal, and per vertex
-    /// the pairs' force at the iterate.
-    self_contacts: SelfContacts,
+    /// Self-collision's pairs as terms of the objective; per free vertex
+    /// the pairs' weight on its diagonal, and per vertex the pairs' force
+    /// at the iterate.
     pairs: PairTerms,
     pair_k: Vec<f64>,
     pair_force: Vec<Vec3A>,
@@ -527,24 +535,10 @@ impl Method for ProjectiveSolver {
         } = input;
         let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
         let stiffness = PD_CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
-        // Self-collision's pairs as terms of the objective, at the
-        // contacts' stiffness (the plugin's pass after the step then has
-        // little left to move).
-        match self_collision {
-            Some(sc) => {
-                ws.self_contacts.find_or_keep(
-                    model,
-                    &state.positions,
-                    &state.velocities,
-                    params.dt as f32,
-                    sc,
-                    0.0,
-                    true,
-                );
-                ws.pairs.fill(&ws.self_contacts, stiffness);
-            }
-            None => ws.pairs.terms.clear(),
-        }
+        // Self-collision's pairs as terms of the objective (the plugin's
+        // pass after the step then has less left to move).
+        let c = PD_PAIR_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
+        ws.pairs.update(model, state, params.dt, self_collision, c);
         // The penalty spheres, and the contacts as penalties.
         let mut penalties = core::mem::take(&mut ws.penalties);
         penalties.clear();
