@@ -354,6 +354,55 @@ pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
     out
 }
 
+/// The sizes of the contact cases (this module's cases).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactSizes {
+    /// Side of the folded sheet.
+    pub folded: usize,
+    /// Seconds it runs.
+    pub seconds: f32,
+    /// Side of the sheet the ball is thrown through.
+    pub ball: usize,
+    /// Side and seconds of the long fold (issue N's target: a 64² sheet in
+    /// four layers, 10 s, no edge through).
+    pub long: (usize, f32),
+}
+
+impl ContactSizes {
+    /// The committed map's: a 32² sheet folded in four for 3 s, the ball
+    /// through a 64² sheet and a 64² sheet folded in four for 10 s (issue
+    /// N's).
+    pub const FULL: Self = Self {
+        folded: 32,
+        seconds: 3.0,
+        ball: 64,
+        long: (64, 10.0),
+    };
+    /// The tiny map's.
+    pub const TINY: Self = Self {
+        folded: 10,
+        seconds: 0.1,
+        ball: 8,
+        long: (8, 0.1),
+    };
+
+    /// The cases: the folded sheet with and without self-collision, the
+    /// long fold, and balls of 25 and 10 cm.
+    pub fn cases(&self) -> Vec<ContactCase> {
+        let (side, seconds) = self.long;
+        let mut long = folded(side, 4, seconds);
+        let folded = folded(self.folded, 4, self.seconds);
+        long.name = format!("{}, {seconds} s", long.name);
+        vec![
+            folded.clone(),
+            folded.without_self_collision(),
+            long,
+            ball(self.ball, 0.25),
+            ball(self.ball, 0.1),
+        ]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

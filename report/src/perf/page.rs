@@ -578,7 +578,8 @@ fn self_collision_section(w: &mut String, rows: &[SelfCollisionRow]) {
          ground (`contact::folded` in the report's crate; the stability map's \"folded\" \
          case), one step at 60 Hz on one thread, with and without `SelfCollision::for_model` \
          (thickness 0.9 of the shortest edge): `stiff` resolves the pairs in every substep, \
-         PBD after each of its strain-limiting iterations, Chebyshev after its step (up to \
+         PBD after each of its strain-limiting iterations, `pd` as penalty terms of its \
+         objective (then after its step), Chebyshev after its step (up to \
          four passes, ending once one has settled, with the pair list kept while the cloth moves \
          less than an eighth of the thickness, `SKIN`). The step includes the ground's swept \
          projection. **Resting**: every sample from the same state, after the layers have \

@@ -44,13 +44,15 @@ impl SelfCollisionRow {
 }
 
 /// The methods of the table: the lab's Chebyshev (self-collision after its
-/// step), PBD (after each of its iterations) and `stiff` (inside its
-/// substeps).
+/// step), PBD (after each of its iterations), `pd` (terms of its objective)
+/// and `stiff` (inside its substeps).
 fn methods() -> Vec<(String, AnyMethod)> {
     let mut m: Vec<(String, AnyMethod)> = bevy_cloth::methods::preset("chebyshev")
         .map(|p| vec![(crate::label(&p.method), p.method)])
         .unwrap_or_default();
-    m.extend(bevy_cloth::methods::preset("pbd").map(|p| (crate::label(&p.method), p.method)));
+    for name in ["pbd", "pd"] {
+        m.extend(bevy_cloth::methods::preset(name).map(|p| (crate::label(&p.method), p.method)));
+    }
     m.push(("stiff".into(), AnyMethod::Xpbd(XpbdSolver::STIFF)));
     m
 }

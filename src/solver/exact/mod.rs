@@ -8,9 +8,9 @@
 //!
 //! with `x̃ = x + dt·damping·v` (the lab's prediction), starting from
 //! `x = x̃`. A cloth with a [`SelfCollision`](crate::SelfCollision) adds its
-//! pairs' terms `½c(min − l)²` at the same `c` (only their diagonal blocks
-//! enter the Hessian: the pairs change every step and are not in its
-//! pattern). The contact terms are the penalty spheres and, with
+//! pairs' terms `½c(min − l)²`, `l` the pair's distance along its direction
+//! at the step's start, at the same `c` (only their diagonal blocks enter
+//! the Hessian: the pairs change every step and are not in its pattern). The contact terms are the penalty spheres and, with
 //! [`ExactSolver::contacts`] (the default), the solids the plugin projects
 //! after the step ([`StepInput::contacts`]) at a stiffness `c` of
 //! [`ExactSolver::CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`.

@@ -96,9 +96,11 @@
 //! reaches a sphere it was not near gets its penalty as an explicit force.
 //!
 //! **Self-collision**: a cloth with a [`SelfCollision`](crate::SelfCollision)
-//! makes its step's pairs terms too, `c/2 ‖(x_a − x_b) − p‖²` with `p` the
-//! pair pushed apart to its least distance, at a stiffness `c` of
-//! [`PD_PAIR_STIFFNESS`] times the heaviest vertex's `m/dt²`: each end gets `c` per pair on its diagonal
+//! makes its step's pairs terms too: `c/2 (min − (x_a − x_b)·n)²` while
+//! the pair is closer than its least distance `min` along `n`, its
+//! direction at the step's start (so an end that passed the other within
+//! the step is pushed back), at a stiffness `c` of [`PD_PAIR_STIFFNESS`]
+//! times the heaviest vertex's `m/dt²`: each end gets `c` per pair on its diagonal
 //! (the pair's off-diagonal blocks are left out: the pairs change every
 //! step and are not in `S`'s pattern, so the other end is taken from the
 //! iterate, a Jacobi split) and `c·x + f` on its right-hand side. While
@@ -150,7 +152,9 @@ use early_stop::EarlyStop;
 /// iterations left pairs pressed together that the pass after the step then
 /// pushed apart against the springs (the drape's second sheet landing:
 /// 49 % stretch; 23 % at this stiffness, 25 % and 37 % at 30 and 100
-/// times a contact's; `pd-anderson` 32 % → 6.2 %).
+/// times a contact's; `pd-anderson` 32 % → 6.2 %; measured while the pairs
+/// were measured along their line at the iterate, before the line at the
+/// step's start).
 pub const PD_PAIR_STIFFNESS: f64 = 1e3;
 
 /// The interactive iteration budget of projective dynamics: each iteration
@@ -723,7 +727,10 @@ impl ProjectiveSolver {
             // diagonal), along the push.
             if let Some(&force) = ws.pair_force.get(i).filter(|p| **p != Vec3A::ZERO) {
                 g -= force.as_dvec3();
-                along = Some((force.normalize().as_dvec3(), ws.pair_k[f]));
+                if let Some(n) = force.try_normalize() {
+                    let c = ws.pair_k.get(f).copied().unwrap_or(0.0);
+                    along = Some((n.as_dvec3(), c));
+                }
             }
             let terms = (&ws.friction[..], &ws.friction_at[..]);
             let friction = friction::term_at(terms, &ws.near, f);
