@@ -236,7 +236,8 @@ impl Stepper {
         if let Some(sc) = sc
             && done.report.self_contacts.is_none()
         {
-            self_contacts.resolve_after_step(model, state, backup, &params, sc);
+            let lenient = done.report.lenient_pairs;
+            self_contacts.resolve_after_step(model, state, backup, &params, sc, lenient);
         }
         let sweep = Sweep {
             motion,

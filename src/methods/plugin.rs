@@ -391,6 +391,7 @@ fn step_cloths<M: ClothMethod>(
                                 &cloth.last_good,
                                 &params,
                                 sc,
+                                done.report.lenient_pairs,
                             )
                         }
                     };

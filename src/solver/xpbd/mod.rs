@@ -573,6 +573,7 @@ impl Method for XpbdSolver {
             relative_error: None,
             contacts: contacts_held,
             self_contacts: self_collision.map(|_| self_held),
+            lenient_pairs: false,
         })
     }
 }
