@@ -229,6 +229,9 @@ pub struct SelfContacts {
     all_v: Vec<Vec3A>,
     /// Scratch of [`resolve_after_step`](Self::resolve_after_step).
     after_step: (Vec<Vec3A>, Vec<Vec3A>),
+    /// The share of each pair's least distance that the pass after the
+    /// step holds (`None`: all of it; see [`PAIR_FLOOR`]).
+    after_step_floor: Option<f32>,
     /// The pair list kept from step to step, if any.
     kept: Kept,
     /// The step's pairs that can touch within the next substeps.
@@ -688,7 +691,7 @@ impl SelfContacts {
         start: impl Fn(usize) -> Vec3A,
         progress: f32,
     ) -> u32 {
-        self.resolve_weighted(self.pairs.iter(), x, start, (progress, 1.0), |i| {
+        self.resolve_weighted(self.pairs.iter(), x, start, progress, |i| {
             self.weight(model, i)
         })
         .touching
@@ -704,21 +707,18 @@ impl SelfContacts {
     }
 
     /// [`resolve`](Self::resolve) over `pairs` (some of the step's), with
-    /// each vertex's inverse mass from `weight`; `reach` is `progress` and
-    /// the share of each pair's least distance to hold (1, or
-    /// [`PAIR_FLOOR`] after a step with
-    /// [`lenient_pairs`](crate::solver::StepReport::lenient_pairs)).
+    /// each vertex's inverse mass from `weight`.
     fn resolve_weighted<'p>(
         &self,
         pairs: impl Iterator<Item = &'p Pair>,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
-        reach: (f32, f32),
+        progress: f32,
         weight: impl Fn(usize) -> f32,
     ) -> Pass {
         let mut pass = Pass::default();
         for p in pairs {
-            if let Some(depth) = self.resolve_pair(p, x, &start, reach, &weight) {
+            if let Some(depth) = self.resolve_pair(p, x, &start, progress, &weight) {
                 pass.touching += 1;
                 pass.deepest = pass.deepest.max(depth);
             }
@@ -735,7 +735,7 @@ impl SelfContacts {
         p: &Pair,
         x: &mut [Vec3A],
         start: &impl Fn(usize) -> Vec3A,
-        (progress, share): (f32, f32),
+        progress: f32,
         weight: &impl Fn(usize) -> f32,
     ) -> Option<f32> {
         let own = self.own;
@@ -747,7 +747,7 @@ impl SelfContacts {
             self.others[b - own].position
         };
         let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
-        let min = share * min;
+        let min = self.after_step_floor.map_or(min, |share| share * min);
         let d = xb - xa;
         let d2 = d.length_squared();
         if d2 >= min * min {

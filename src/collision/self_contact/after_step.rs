@@ -83,6 +83,7 @@ impl SelfContacts {
         }
         let dt = params.dt as f32;
         let inv_dt = 1.0 / dt;
+        // The step's motion as a velocity, for the swept boxes.
         // Scratch kept from step to step: the step's motion as a velocity
         // (for the swept boxes) and where the step left the positions.
         let (mut moved, mut solved) = core::mem::take(&mut self.after_step);
@@ -98,13 +99,13 @@ impl SelfContacts {
         self.find_or_keep(model, &before.positions[..n], &moved, dt, sc, 0.0, true);
         // The pairs the step left too close (the first pass's count; the
         // later passes settle what it disturbed).
-        let share = if lenient { PAIR_FLOOR } else { 1.0 };
+        self.after_step_floor = lenient.then_some(PAIR_FLOOR);
         let touching = settle(|| {
             self.resolve_weighted(
                 self.pairs.iter(),
                 &mut state.positions[..n],
                 |i| before.positions[i],
-                (1.0, share),
+                1.0,
                 |i| self.weight(model, i),
             )
         });
@@ -117,6 +118,7 @@ impl SelfContacts {
             *v += (x - s) * inv_dt;
         }
         self.after_step = (moved, solved);
+        self.after_step_floor = None;
         touching
     }
 }

@@ -101,13 +101,7 @@ impl ClothLayers {
         contacts.own = x.len();
         contacts.others.clear();
         settle(|| {
-            contacts.resolve_weighted(
-                contacts.pairs.iter(),
-                x,
-                |i| start[i],
-                (1.0, 1.0),
-                |i| weight[i],
-            )
+            contacts.resolve_weighted(contacts.pairs.iter(), x, |i| start[i], 1.0, |i| weight[i])
         })
     }
 

@@ -62,10 +62,7 @@ impl SelfContacts {
         let mut rest = None;
         for &k in active {
             let p = &self.pairs[k as usize];
-            if self
-                .resolve_pair(p, x, &start, (progress, 1.0), &weight)
-                .is_some()
-            {
+            if self.resolve_pair(p, x, &start, progress, &weight).is_some() {
                 touching += 1;
                 if far(x, p.a as usize) || far(x, p.b as usize) {
                     rest = Some(k as usize + 1);
@@ -75,7 +72,7 @@ impl SelfContacts {
         }
         if let Some(from) = rest {
             touching += self
-                .resolve_weighted(self.pairs[from..].iter(), x, start, (progress, 1.0), weight)
+                .resolve_weighted(self.pairs[from..].iter(), x, start, progress, weight)
                 .touching;
             // A vertex moved beyond the list's reach.
             self.active.at.clear();
