@@ -236,8 +236,7 @@ impl Stepper {
         if let Some(sc) = sc
             && done.report.self_contacts.is_none()
         {
-            let lenient = done.report.lenient_pairs;
-            self_contacts.resolve_after_step(model, state, backup, &params, sc, lenient);
+            self_contacts.resolve_after_step(model, state, backup, &params, sc);
         }
         let sweep = Sweep {
             motion,

@@ -249,8 +249,8 @@ mod self_collision {
     use bevy::math::{Affine3A, Vec3, Vec3A};
 
     use crate::collision::self_contact::{
-        AFTER_STEP_PASSES, IntersectionCheck, PAIR_FLOOR, Pass, SETTLED, SelfCollisionInput,
-        SelfContacts, count_intersections, settle,
+        AFTER_STEP_PASSES, IntersectionCheck, Pass, SETTLED, SelfCollisionInput, SelfContacts,
+        count_intersections, settle,
     };
     use crate::collision::{SelfCollision, SelfCollisionError};
     use crate::model::{ClothBuilder, ClothModel, ClothState};
@@ -363,40 +363,6 @@ mod self_collision {
         contacts.resolve(&model, &mut x, |i| start[i], 1.0);
         assert_eq!(x[a], start[a]);
         assert!((x[b].y - start[a].y - sc.thickness).abs() < 1e-5);
-    }
-
-    /// After a step that held its pairs as settled penalty terms
-    /// (`lenient_pairs`), the pass after it holds them at `PAIR_FLOOR` of
-    /// their least distance and leaves a pair between that and it alone;
-    /// after any other step, at all of it.
-    #[test]
-    fn a_lenient_pass_after_the_step_holds_pairs_at_the_floor() {
-        let model = sheet(11);
-        let sc = SelfCollision {
-            friction: 0.0,
-            ..SelfCollision::for_model(&model)
-        };
-        let params = StepParams {
-            dt: 1.0 / 60.0,
-            ..StepParams::LAB
-        };
-        // Vertex 60 ends `share` of the thickness above vertex 0, coming
-        // down from twice the thickness.
-        let run = |share: f32, lenient: bool| {
-            let mut before = ClothState::at_rest(&model, &Affine3A::IDENTITY);
-            before.positions[60] = before.positions[0] + Vec3A::Y * (2.0 * sc.thickness);
-            let mut state = before.clone();
-            state.positions[60] = state.positions[0] + Vec3A::Y * (share * sc.thickness);
-            let mut contacts = SelfContacts::default();
-            let input = SelfCollisionInput::alone(sc);
-            contacts.resolve_after_step(&model, &mut state, &before, &params, input, lenient);
-            state.positions[60].distance(state.positions[0]) / sc.thickness
-        };
-        let close = |got: f32, want: f32| assert!((got - want).abs() < 1e-4, "{got} {want}");
-        close(run(0.5, false), 1.0);
-        close(run(0.5, true), PAIR_FLOOR);
-        close(run(0.95, false), 1.0);
-        close(run(0.95, true), 0.95);
     }
 
     #[test]
@@ -530,7 +496,6 @@ mod self_collision {
                         &before,
                         &params,
                         SelfCollisionInput::alone(sc),
-                        false,
                     );
                 }
                 worst = worst.max(count_intersections(&model, &state.positions, &mut check));

@@ -391,7 +391,6 @@ fn step_cloths<M: ClothMethod>(
                                 &cloth.last_good,
                                 &params,
                                 sc,
-                                done.report.lenient_pairs,
                             )
                         }
                     };

@@ -207,14 +207,6 @@ pub struct StepReport {
     /// of its step, if it handles self-collision inside its step (`stiff`);
     /// `None` otherwise (the plugin then resolves it after the step).
     pub self_contacts: Option<u32>,
-    /// Whether the plugin's self-collision pass after the step may leave
-    /// the step's pairs at [`PAIR_FLOOR`](crate::collision::self_contact::PAIR_FLOOR)
-    /// of their least distance: set by Anderson-accelerated projective
-    /// dynamics (`pd-anderson`) when it took pairs into its objective as
-    /// penalty terms, whose equilibrium under the layers' weight is a little
-    /// closer than that distance. `pd`, `newton` and `exact` take the pairs
-    /// into their objective too but leave this off (see `PAIR_FLOOR`).
-    pub lenient_pairs: bool,
 }
 
 /// The relative error above which a step counts as not converged

@@ -140,7 +140,6 @@ impl Method for SymplecticSolver {
             relative_error: None,
             contacts,
             self_contacts: None,
-            lenient_pairs: false,
         })
     }
 }

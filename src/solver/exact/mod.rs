@@ -428,7 +428,6 @@ impl Method for ExactSolver {
             relative_error: Some(relative_error),
             contacts: 0,
             self_contacts: None,
-            lenient_pairs: false,
         })
     }
 }

@@ -302,7 +302,6 @@ impl Method for ImplicitSolver {
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
             self_contacts: None,
-            lenient_pairs: false,
         })
     }
 }

@@ -287,7 +287,6 @@ impl Method for LinearImplicitSolver {
             relative_error: None,
             contacts: 0,
             self_contacts: None,
-            lenient_pairs: false,
         })
     }
 }

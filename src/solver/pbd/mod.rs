@@ -120,7 +120,6 @@ impl Method for PbdSolver {
             relative_error: None,
             contacts: 0,
             self_contacts: self_collision.map(|_| 0),
-            lenient_pairs: false,
         };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();

@@ -106,11 +106,7 @@
 //! iterate, a Jacobi split) and `c·x + f` on its right-hand side. While
 //! there are pairs, Chebyshev's acceleration is off: its `ρ` is the
 //! springs', and with 30 iterations the accelerated iteration diverged
-//! where a sheet landed on another. The plugin's pass after the step then
-//! pushes apart what is left closer than the pairs' least distance; after
-//! Anderson-accelerated iterations, only what is closer than
-//! [`PAIR_FLOOR`](crate::collision::self_contact::PAIR_FLOOR) of it
-//! ([`StepReport::lenient_pairs`]).
+//! where a sheet landed on another.
 //!
 //! **Friction** (the `friction` module): a vertex that ended the last step
 //! in contact with a collider of friction `μ` gets lagged Coulomb friction,
@@ -764,9 +760,6 @@ impl ProjectiveSolver {
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
             self_contacts: None,
-            // Anderson's energy-checked iterations settle the pairs; plain
-            // ones do not where a stack lands (see `PAIR_FLOOR`).
-            lenient_pairs: self.anderson > 0 && !ws.pairs.terms.is_empty(),
         })
     }
 }

@@ -573,7 +573,6 @@ impl Method for XpbdSolver {
             relative_error: None,
             contacts: contacts_held,
             self_contacts: self_collision.map(|_| self_held),
-            lenient_pairs: false,
         })
     }
 }
