@@ -9,7 +9,7 @@ use super::early_stop::ErrorSlots;
 use super::friction::{Friction, term_at};
 use super::multigrid::{FineStencil, Multigrid};
 use super::{FactorKey, PINNED, ProjectiveWorkspace};
-use crate::collision::{PenaltyContact, PenaltySphere};
+use crate::collision::PenaltySphere;
 use crate::model::stencil::NONE;
 use crate::model::{Adjacency, ClothModel};
 use crate::solver::chebyshev::blend;
@@ -283,7 +283,6 @@ impl ProjectiveWorkspace {
             k,
             d,
             near,
-            kick,
             cholesky,
             rhs,
             track,
@@ -302,7 +301,6 @@ impl ProjectiveWorkspace {
             adjacency,
             sums,
             spheres,
-            kick: *kick,
             friction: (friction, friction_at),
             pairs: (pair_k, pair_force),
             x,
@@ -368,47 +366,6 @@ impl ProjectiveWorkspace {
     }
 }
 
-/// The explicit penalty of a collider's contact at a vertex that was not
-/// near it at the step's start: `PD_CONTACT_STIFFNESS` where the contact's
-/// own stiffness is `PD_SELF_CONTACT_STIFFNESS` (the penalty spheres,
-/// before `from`, keep theirs).
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Kick {
-    /// The first collider among the step's penalties.
-    pub(super) from: usize,
-    /// The kick's stiffness over the contact's.
-    pub(super) scale: f32,
-}
-
-impl Default for Kick {
-    fn default() -> Self {
-        Self {
-            from: usize::MAX,
-            scale: 1.0,
-        }
-    }
-}
-
-impl Kick {
-    /// Penalty `s`'s contact at `x`, for a vertex `near` it or not; its
-    /// force and stiffness those of the kick where it applies.
-    #[inline]
-    pub(super) fn contact(
-        self,
-        sphere: &PenaltySphere,
-        s: usize,
-        near: bool,
-        x: Vec3A,
-    ) -> Option<(PenaltyContact, f32)> {
-        let mut contact = sphere.contact(x)?;
-        if s < self.from || near {
-            return Some((contact, sphere.stiffness));
-        }
-        contact.force *= self.scale;
-        Some((contact, sphere.stiffness * self.scale))
-    }
-}
-
 /// What the direct global step's right-hand side at one free vertex is
 /// made of (see [`ProjectiveWorkspace::global`]).
 pub(super) struct RhsParts<'a> {
@@ -420,7 +377,6 @@ pub(super) struct RhsParts<'a> {
     adjacency: &'a Adjacency,
     sums: Option<&'a [Vec3A]>,
     spheres: &'a [PenaltySphere],
-    kick: Kick,
     friction: (&'a [Friction], &'a [u32]),
     /// Self-collision's pairs: each free vertex's weight, each vertex's
     /// force (empty without pairs).
@@ -455,7 +411,7 @@ impl RhsParts<'_> {
                 // c·p, p the vertex projected onto the sphere's outside.
                 acc += f64::from(sphere.stiffness) * self.x[i].as_dvec3();
             }
-            if let Some((contact, _)) = self.kick.contact(sphere, s, near, self.x[i]) {
+            if let Some(contact) = sphere.contact(self.x[i]) {
                 acc += contact.force.as_dvec3();
             }
         }
@@ -508,9 +464,8 @@ impl ProjectiveWorkspace {
             }
             // A near sphere's `c·p − c·x` is its penalty force; so is a
             // far one's explicit force.
-            for (s, sphere) in spheres.iter().enumerate() {
-                let near = s < 64 && self.near[f] & (1 << s) != 0;
-                if let Some((contact, _)) = self.kick.contact(sphere, s, near, x[i]) {
+            for sphere in spheres {
+                if let Some(contact) = sphere.contact(x[i]) {
                     r += contact.force;
                 }
             }

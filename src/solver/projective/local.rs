@@ -66,10 +66,9 @@ impl ProjectiveWorkspace {
         });
         if !spheres.is_empty() {
             for (f, &i) in self.free.iter().enumerate() {
-                for (s, sphere) in spheres.iter().enumerate() {
-                    let near = s < 64 && self.near[f] & (1 << s) != 0;
-                    if let Some((contact, c)) = self.kick.contact(sphere, s, near, x[i as usize]) {
-                        energy += 0.5 * f64::from(c * contact.depth * contact.depth);
+                for sphere in spheres {
+                    if let Some(contact) = sphere.contact(x[i as usize]) {
+                        energy += 0.5 * f64::from(sphere.stiffness * contact.depth * contact.depth);
                     }
                 }
                 let terms = (&self.friction[..], &self.friction_at[..]);

@@ -93,9 +93,7 @@
 //! symbolic analysis is kept: only diagonal values change); the multigrid
 //! keeps its hierarchy and takes the change into each coarse matrix
 //! (`Pᵀ ΔS P`: see the `multigrid` module). A vertex that
-//! reaches a sphere it was not near gets its penalty as an explicit force
-//! (a collider's at [`PD_CONTACT_STIFFNESS`] even where the cloth's contacts
-//! are stiffer: see [`PD_SELF_CONTACT_STIFFNESS`]).
+//! reaches a sphere it was not near gets its penalty as an explicit force.
 //!
 //! **Self-collision**: a cloth with a [`SelfCollision`](crate::SelfCollision)
 //! makes its step's pairs terms too: `c/2 (min − (x_a − x_b)·n)²` while
@@ -143,15 +141,14 @@ mod global;
 mod local;
 mod multigrid;
 
-use global::{Kick, Solution};
+use global::Solution;
 use multigrid::{FineStencil, Multigrid};
 
 use early_stop::EarlyStop;
 
 /// The stiffness of a self-collision pair in projective dynamics'
 /// objective, in units of the heaviest vertex's `m/dt²`: ten times a
-/// contact's ([`PD_CONTACT_STIFFNESS`]; a self-colliding cloth's contacts
-/// are [`PD_SELF_CONTACT_STIFFNESS`]), Newton's. At a contact's, the 10
+/// contact's ([`PD_CONTACT_STIFFNESS`]), Newton's. At a contact's, the 10
 /// iterations left pairs pressed together that the pass after the step then
 /// pushed apart against the springs (the drape's second sheet landing:
 /// 49 % stretch; 23 % at this stiffness, 25 % and 37 % at 30 and 100
@@ -178,20 +175,6 @@ pub const PD_ITERATIONS: u32 = 10;
 /// at the step's start; with that force at this stiffness and the rest at
 /// `newton`'s, 244 of 300 steps were still flagged: `docs/measurements.md`.)
 pub const PD_CONTACT_STIFFNESS: f64 = 1e2;
-
-/// The stiffness of a contact in projective dynamics' objective for a
-/// cloth with [`SelfCollision`](crate::SelfCollision), in units of the
-/// heaviest vertex's `m/dt²`: its pairs' ([`PD_PAIR_STIFFNESS`]) or more.
-/// At [`PD_CONTACT_STIFFNESS`], a tenth of its pairs', the layers of a
-/// folded sheet pressed its bottom layer into the ground and stretched it
-/// outwards (issue N's 64² fold: 23 edges through a sheet, 46 %). A vertex
-/// reaching a collider it was not near at the step's start feels its
-/// penalty as an explicit force, with no weight on its diagonal to hold it:
-/// that force stays at [`PD_CONTACT_STIFFNESS`]. A cloth without self-collision keeps
-/// [`PD_CONTACT_STIFFNESS`]: a stiffer contact holds the cloth's sliding
-/// along the collider too (its weight is on all three axes), and the lab
-/// cloth falling onto the sphere stuck to it (`docs/measurements.md`).
-pub const PD_SELF_CONTACT_STIFFNESS: f64 = 2e3;
 
 /// The preset's early stop ([`ProjectiveSolver::tolerance`]): an estimated
 /// error of 1 % of the step's motion, the per-step error the budget of
@@ -242,9 +225,7 @@ pub struct ProjectiveSolver {
     pub tolerance: f64,
     /// The solids projected after the step ([`StepInput::contacts`]) as
     /// penalty terms of the objective too, like the penalty spheres, at
-    /// [`PD_CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`
-    /// ([`PD_SELF_CONTACT_STIFFNESS`] on a cloth with
-    /// [`SelfCollision`](crate::SelfCollision)): the iteration
+    /// [`PD_CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`: the iteration
     /// converges to an implicit step with its contacts, so a stiff cloth
     /// resting on a collider is not strained by the projection after the
     /// step, nor its step measured against a fall the collider stops. A
@@ -494,9 +475,6 @@ pub struct ProjectiveWorkspace {
     pairs: PairTerms,
     pair_k: Vec<f64>,
     pair_force: Vec<Vec3A>,
-    /// This step's explicit penalty for colliders' contacts a vertex was
-    /// not near.
-    kick: Kick,
 }
 
 impl core::fmt::Debug for ProjectiveWorkspace {
@@ -563,14 +541,7 @@ impl Method for ProjectiveSolver {
             contact_motion: _,
         } = input;
         let heaviest = model.masses().iter().copied().fold(0.0f32, f32::max);
-        // A cloth that collides with itself has its contacts as stiff as
-        // its pairs, and the kick of a contact it was not near at
-        // `PD_CONTACT_STIFFNESS` (see `PD_SELF_CONTACT_STIFFNESS`).
-        let (contact, kick) = match self_collision {
-            Some(_) => (PD_SELF_CONTACT_STIFFNESS, PD_CONTACT_STIFFNESS),
-            None => (PD_CONTACT_STIFFNESS, PD_CONTACT_STIFFNESS),
-        };
-        let stiffness = contact * f64::from(heaviest) / (params.dt * params.dt);
+        let stiffness = PD_CONTACT_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
         // Self-collision's pairs as terms of the objective (the plugin's
         // pass after the step then has less left to move).
         let c = PD_PAIR_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
@@ -587,12 +558,7 @@ impl Method for ProjectiveSolver {
                     .map(|&shape| PenaltySphere::shape(shape, stiffness)),
             );
         }
-        ws.kick = Kick {
-            from: spheres.len(),
-            scale: (kick / contact) as f32,
-        };
         let result = self.advance_with(model, params, &penalties, state, ws);
-        ws.kick = Kick::default();
         ws.penalties = penalties;
         result
     }
@@ -751,16 +717,15 @@ impl ProjectiveSolver {
             // step's friction (the one pressed hardest per vertex).
             let mut along = None;
             let mut pressed = None;
-            let f = ws.dof_of[i] as usize;
             for (k, sphere) in spheres.iter().enumerate() {
-                let near = k < 64 && ws.near[f] & (1 << k) != 0;
-                if let Some((contact, c)) = ws.kick.contact(sphere, k, near, x[i]) {
+                if let Some(contact) = sphere.contact(x[i]) {
                     g -= contact.force.as_dvec3();
-                    along = Some((contact.normal.as_dvec3(), f64::from(c)));
+                    along = Some((contact.normal.as_dvec3(), f64::from(sphere.stiffness)));
                     friction::EndedIn::offer(&mut pressed, i as u32, k, sphere, &contact);
                 }
             }
             ws.ended_in.keep(pressed);
+            let f = ws.dof_of[i] as usize;
             // A self-collision pair's push likewise (its weight `c` on the
             // diagonal), along the push.
             if let Some(&force) = ws.pair_force.get(i).filter(|p| **p != Vec3A::ZERO) {

@@ -642,34 +642,3 @@ fn friction_in_the_objective_holds_a_cloth_on_a_slope_that_a_frictionless_one_sl
         }
     }
 }
-
-#[test]
-fn a_colliders_kick_at_a_vertex_not_near_it_is_the_soft_contacts() {
-    // A self-colliding cloth's colliders at `PD_SELF_CONTACT_STIFFNESS`:
-    // a vertex that was near one at the step's start has that weight on
-    // its diagonal; one that reaches it only during the iteration feels
-    // an explicit force at `PD_CONTACT_STIFFNESS` instead. The penalty
-    // spheres (before `from`) keep their own stiffness either way.
-    let sphere = PenaltySphere::sphere(Vec3A::ZERO, 1.0, 2000.0);
-    let kick = global::Kick {
-        from: 1,
-        scale: (PD_CONTACT_STIFFNESS / PD_SELF_CONTACT_STIFFNESS) as f32,
-    };
-    let x = Vec3A::new(0.0, 0.5, 0.0);
-    let at = |s, near| kick.contact(&sphere, s, near, x).map(|(c, k)| (c.force, k));
-    let full = (Vec3A::new(0.0, 1000.0, 0.0), 2000.0);
-    assert_eq!(at(0, false), Some(full));
-    assert_eq!(at(1, true), Some(full));
-    assert_eq!(at(1, false), Some((Vec3A::new(0.0, 50.0, 0.0), 100.0)));
-    assert_eq!(kick.contact(&sphere, 1, false, 2.0 * Vec3A::Y), None);
-    // Without self-collision the two stiffnesses are one: nothing changes.
-    let same = global::Kick {
-        from: 0,
-        scale: 1.0,
-    };
-    assert_eq!(
-        same.contact(&sphere, 0, false, x)
-            .map(|(c, k)| (c.force, k)),
-        Some(full)
-    );
-}
