@@ -658,6 +658,12 @@ impl SelfContacts {
             .sort_unstable_by_key(|p| (u64::from(p.a) << 32) | u64::from(p.b));
     }
 
+    /// The step's pairs as `(a, b, least distance)`, in their order.
+    #[cfg(test)]
+    pub(crate) fn pair_list(&self) -> Vec<(u32, u32, f32)> {
+        self.pairs.iter().map(|p| (p.a, p.b, p.min)).collect()
+    }
+
     /// Pairs found for the step.
     pub fn pair_count(&self) -> usize {
         self.pairs.len()

@@ -428,6 +428,66 @@ mod self_collision {
         );
     }
 
+    /// The grid's pairs are those of a test of every pair of vertices (the
+    /// pairs' definition, written out here on its own): a sheet squeezed
+    /// and crumpled into many layers, its vertices moving every way, a few
+    /// fast and a few pinned.
+    #[test]
+    fn the_grid_finds_the_pairs_a_test_of_every_pair_finds() {
+        let model = ClothBuilder::grid(24, 24, Vec3::ZERO, Vec3::Z, Vec3::X)
+            .with_pins([0, 23])
+            .build()
+            .unwrap();
+        let sc = SelfCollision::for_model(&model);
+        let (dt, slack) = (1.0 / 60.0, 0.004);
+        let mut seed = 11;
+        let rest = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        let x: Vec<Vec3A> = rest
+            .iter()
+            .map(|&p| p * Vec3A::new(0.25, 1.0, 0.3) + crate::testing::noise(&mut seed) * 0.03)
+            .collect();
+        let v: Vec<Vec3A> = (0..x.len())
+            .map(|i| {
+                let fast = if i % 97 == 5 { 2.5 } else { 0.5 };
+                crate::testing::noise(&mut seed) * fast
+            })
+            .collect();
+        let mut contacts = SelfContacts::default();
+        contacts.find(&model, &x, &v, dt, SelfCollisionInput::alone(sc), slack);
+        let topology = model.topology();
+        let (adjacency, springs) = (topology.adjacency(), topology.springs());
+        let half = 0.5 * sc.thickness;
+        let margin = |i: usize| half + slack + 0.25 * v[i].length() * dt;
+        let mut every = Vec::new();
+        for a in 0..x.len() {
+            for b in a + 1..x.len() {
+                let linked = adjacency.of(a).iter().any(|inc| {
+                    inc.other as usize == b
+                        && springs[inc.spring as usize].kind != crate::model::SpringKind::Bend
+                });
+                let min = sc
+                    .thickness
+                    .min(topology.rest_positions()[a].distance(topology.rest_positions()[b]));
+                if linked || (model.pinned()[a] && model.pinned()[b]) || min <= 0.0 {
+                    continue;
+                }
+                let (d, dd) = (x[b] - x[a], (v[b] - v[a]) * dt);
+                let t = if dd.length_squared() > 0.0 {
+                    (-d.dot(dd) / dd.length_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let approach = (d + t * dd).length();
+                if approach <= min + margin(a) - half + margin(b) - half {
+                    every.push((a as u32, b as u32, min));
+                }
+            }
+        }
+        assert!(every.len() > 1000, "{} pairs", every.len());
+        assert_eq!(contacts.skipped(), 0);
+        assert_eq!(contacts.pair_list(), every);
+    }
+
     #[test]
     fn a_vertex_flying_off_to_infinity_is_left_out_without_a_panic() {
         let model = sheet(5);
