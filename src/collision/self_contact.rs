@@ -19,9 +19,10 @@
 //!
 //! - [`SelfContacts::find`] once per step: the pairs that can come within
 //!   the thickness during the step, from each vertex's swept box (its
-//!   position and where its velocity takes it) in a grid of cells of the
-//!   thickness's size (a hash table filled by a counting sort; each pair
-//!   tested once, in the lowest cell the two boxes share). A pair's
+//!   position and where its velocity takes it) in a grid of cells of twice
+//!   the thickness (a hash table filled by a counting sort; each pair
+//!   tested once, in the lowest cell the two boxes share, and first by
+//!   the boxes themselves). A pair's
 //!   minimum distance is the thickness, or its rest distance where that is
 //!   shorter (a mesh folded at rest); two vertices joined by a stretch or
 //!   shear spring are not a pair (the spring keeps them apart). After the
@@ -76,8 +77,10 @@ use bevy::math::Vec3A;
 use bevy::prelude::*;
 
 use crate::model::{ClothModel, ClothState};
+use grid::{CellBox, Entry, Linked};
 
 mod check;
+mod grid;
 mod layers;
 mod objective;
 mod substeps;
@@ -209,6 +212,9 @@ pub struct SelfContacts {
     /// Each vertex's swept box in grid cells (`lo`, `hi`, inclusive;
     /// empty, `lo > hi`, for a vertex left out).
     boxes: Vec<CellBox>,
+    /// Each vertex's margin (m) and swept box, grown by it, in metres.
+    margins: Vec<f32>,
+    extents: Vec<[Vec3A; 2]>,
     /// The grid as a counting-sorted hash table: bucket `b`'s entries are
     /// `entries[starts[b]..starts[b + 1]]`, in increasing vertex order.
     starts: Vec<u32>,
@@ -230,6 +236,8 @@ pub struct SelfContacts {
     kept: Kept,
     /// The step's pairs that can touch within the next substeps.
     active: substeps::Active,
+    /// Which vertices a stretch or shear spring joins.
+    linked: Linked,
 }
 
 /// How far beyond the thickness, as a share of it, the pairs of a cloth
@@ -285,63 +293,6 @@ impl Kept {
                     <= limit
             })
     }
-}
-
-fn cell_of(p: Vec3A, inv: f32) -> [i64; 3] {
-    let q = p * inv;
-    [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
-}
-
-/// How many cells the box of cells `lo..=hi` covers (saturating: a box
-/// out at infinity covers `i64::MAX`).
-fn span(lo: [i64; 3], hi: [i64; 3]) -> i64 {
-    (0..3)
-        .map(|k| hi[k].saturating_sub(lo[k]).saturating_add(1).max(0))
-        .fold(1i64, i64::saturating_mul)
-}
-
-/// A box of grid cells, `lo` to `hi` inclusive (empty where `lo > hi`).
-type CellBox = [[i32; 3]; 2];
-
-/// A box of no cells.
-const EMPTY_BOX: CellBox = [[0; 3], [-1; 3]];
-
-/// One vertex in one cell of the grid.
-#[derive(Clone, Copy, Debug, Default)]
-struct Entry {
-    vertex: u32,
-    cell: [i32; 3],
-}
-
-/// Calls `f` with every cell of the box of cells `b` (inclusive).
-fn for_each_cell(b: &CellBox, mut f: impl FnMut([i32; 3])) {
-    for cx in b[0][0]..=b[1][0] {
-        for cy in b[0][1]..=b[1][1] {
-            for cz in b[0][2]..=b[1][2] {
-                f([cx, cy, cz]);
-            }
-        }
-    }
-}
-
-/// The hash-table bucket of cell `c` (`mask`: the table's size less one).
-fn bucket(c: [i32; 3], mask: u64) -> usize {
-    let h = (c[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ (c[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ (c[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
-    ((h ^ (h >> 29)) & mask) as usize
-}
-
-/// The least distance between two points moving in straight lines over
-/// `t ∈ [0, 1]`: `d` apart at the start, their difference moving by `dd`.
-fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
-    let l2 = dd.length_squared();
-    let t = if l2 > 0.0 {
-        (-d.dot(dd) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (d + t * dd).length()
 }
 
 /// A vertex of another cloth, as this cloth's step sees it: where it was
@@ -462,17 +413,12 @@ impl SelfContacts {
             self.kept.built.clear();
         }
         let rest = topology.rest_positions();
-        let (adjacency, springs) = (topology.adjacency(), topology.springs());
         // Two vertices joined by a stretch or shear spring: the spring
         // keeps them apart (the thickness is below its rest length), so
         // they are not a pair. Vertices joined by a bending spring can fold
         // onto each other and are.
-        let linked = |a: usize, b: usize| {
-            adjacency.of(a).iter().any(|inc| {
-                inc.other as usize == b
-                    && springs[inc.spring as usize].kind != crate::model::SpringKind::Bend
-            })
-        };
+        let mut linked = core::mem::take(&mut self.linked);
+        linked.update(model);
         let mut others = core::mem::take(&mut self.others);
         others.clear();
         others.extend(sc.others.into_iter().flatten());
@@ -511,7 +457,7 @@ impl SelfContacts {
             |a, b| match (a < n, b < n) {
                 (true, true) => {
                     let min = thickness.min(rest[a].distance(rest[b]));
-                    (!(pinned[a] && pinned[b]) && min > 0.0 && !linked(a, b))
+                    (!(pinned[a] && pinned[b]) && min > 0.0 && !linked.joins(a, b))
                         .then_some((min, friction))
                 }
                 (true, false) => {
@@ -523,6 +469,7 @@ impl SelfContacts {
         );
         self.own = n;
         self.others = others;
+        self.linked = linked;
         self.all_x = xs;
         self.all_v = vs;
         if keep {
@@ -531,131 +478,6 @@ impl SelfContacts {
             self.kept.pins.clear();
             self.kept.pins.extend_from_slice(model.pins());
         }
-    }
-
-    /// [`find`](Self::find) over any vertices: cells of `cell` (m), each
-    /// vertex's box grown by `half(i)` plus `slack` plus a quarter of its
-    /// motion, and `pair(a, b)` the least distance and friction of a pair
-    /// (`None`: not a pair).
-    fn find_where(
-        &mut self,
-        x: &[Vec3A],
-        v: &[Vec3A],
-        dt: f32,
-        [cell, slack]: [f32; 2],
-        half: impl Fn(usize) -> f32,
-        pair: impl Fn(usize, usize) -> Option<(f32, f32)>,
-    ) {
-        self.pairs.clear();
-        self.boxes.clear();
-        self.skipped = 0;
-        let n = x.len().min(v.len());
-        if n < 2 || cell.is_nan() || cell <= 0.0 {
-            return;
-        }
-        let inv = 1.0 / cell;
-        let margin = |i: usize| half(i) + slack + 0.25 * v[i].length() * dt;
-        // Each vertex's swept box, in cells.
-        let mut total = 0usize;
-        for i in 0..n {
-            let end = x[i] + v[i] * dt;
-            let m = margin(i);
-            let cells = (x[i].is_finite() && end.is_finite() && m.is_finite())
-                .then(|| {
-                    let (lo, hi) = (x[i].min(end) - m, x[i].max(end) + m);
-                    [cell_of(lo, inv), cell_of(hi, inv)]
-                })
-                .filter(|&[lo, hi]| {
-                    (1..=MAX_CELLS).contains(&span(lo, hi))
-                        && lo.iter().chain(&hi).all(|c| i32::try_from(*c).is_ok())
-                });
-            match cells {
-                Some(b) => {
-                    total += span(b[0], b[1]) as usize;
-                    self.boxes.push(b.map(|c| c.map(|k| k as i32)));
-                }
-                None => {
-                    self.skipped += 1;
-                    self.boxes.push(EMPTY_BOX);
-                }
-            }
-        }
-        // A counting sort of the (cell, vertex) entries into the buckets of
-        // a hash table of about twice their number: linear, where a sort of
-        // the entries was most of the step's self-collision cost.
-        let buckets = (2 * total).next_power_of_two().max(2);
-        let mask = buckets as u64 - 1;
-        self.starts.clear();
-        self.starts.resize(buckets + 1, 0);
-        for b in &self.boxes {
-            for_each_cell(b, |c| self.starts[bucket(c, mask)] += 1);
-        }
-        let mut sum = 0;
-        for s in &mut self.starts {
-            sum += *s;
-            *s = sum;
-        }
-        // `starts[b]` is now the end of bucket `b`: filled backwards from
-        // the last vertex, each bucket ends up in increasing vertex order
-        // and `starts[b]` at its start.
-        self.entries.clear();
-        self.entries.resize(total, Entry::default());
-        for (i, b) in self.boxes.iter().enumerate().rev() {
-            for_each_cell(b, |cell| {
-                let s = &mut self.starts[bucket(cell, mask)];
-                *s -= 1;
-                self.entries[*s as usize] = Entry {
-                    vertex: i as u32,
-                    cell,
-                };
-            });
-        }
-        for b in 0..buckets {
-            let (start, end) = (self.starts[b] as usize, self.starts[b + 1] as usize);
-            let here = &self.entries[start..end];
-            for (k, ea) in here.iter().enumerate() {
-                let (a, box_a) = (ea.vertex as usize, self.boxes[ea.vertex as usize]);
-                for eb in &here[k + 1..] {
-                    // Another cell of the same bucket, or the same vertex.
-                    if eb.cell != ea.cell || eb.vertex == ea.vertex {
-                        continue;
-                    }
-                    // The pair is tested in the lowest cell the two boxes
-                    // share only: once.
-                    let b2 = eb.vertex as usize;
-                    let box_b = self.boxes[b2];
-                    if (0..3).any(|k| box_a[0][k].max(box_b[0][k]) != ea.cell[k]) {
-                        continue;
-                    }
-                    // Within reach of the largest least distance a pair
-                    // can have (the two half thicknesses), before the
-                    // pair's own test.
-                    let d = x[b2] - x[a];
-                    let approach = closest_approach(d, (v[b2] - v[a]) * dt);
-                    if approach > margin(a) + margin(b2) {
-                        continue;
-                    }
-                    let Some((min, friction)) = pair(a, b2) else {
-                        continue;
-                    };
-                    let reach = min + margin(a) - half(a) + margin(b2) - half(b2);
-                    if approach <= reach {
-                        let d0 = d.length();
-                        self.pairs.push(Pair {
-                            a: a as u32,
-                            b: b2 as u32,
-                            min,
-                            friction,
-                            overlap: if d0 < min { d0 } else { f32::INFINITY },
-                        });
-                    }
-                }
-            }
-        }
-        // In the pair order the resolution sweeps: the same on any thread
-        // count.
-        self.pairs
-            .sort_unstable_by_key(|p| (u64::from(p.a) << 32) | u64::from(p.b));
     }
 
     /// The step's pairs as `(a, b, least distance)`, in their order.

@@ -4,7 +4,8 @@
 
 use bevy::math::Vec3A;
 
-use super::{MAX_CELLS, cell_of, span};
+use super::MAX_CELLS;
+use super::grid::{cell_of, span};
 use crate::model::ClothModel;
 
 /// A cell's key: its integer coordinates packed 21 bits each.
