@@ -62,7 +62,7 @@ pub(super) fn cell_of(p: Vec3A, inv: f32) -> [i64; 3] {
 /// down where that rounded up (a negative fraction). Saturates alike.
 fn floor(q: f32) -> i64 {
     let t = q as i64;
-    t - i64::from((t as f32) > q)
+    t.saturating_sub(i64::from((t as f32) > q))
 }
 
 /// How many cells the box of cells `lo..=hi` covers (saturating: a box
@@ -293,5 +293,41 @@ impl SelfContacts {
         // count.
         self.pairs
             .sort_unstable_by_key(|p| (u64::from(p.a) << 32) | u64::from(p.b));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::floor;
+
+    #[test]
+    fn floor_is_the_library_floor_saturated_alike() {
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.000_001,
+            2.999_999,
+            -7.25,
+            16_777_217.0,
+            -16_777_217.0,
+            3e9,
+            -3e9,
+            1e30,
+            -1e30,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+        ];
+        for q in values {
+            assert_eq!(floor(q), q.floor() as i64, "{q}");
+        }
     }
 }
