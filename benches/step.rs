@@ -1,6 +1,7 @@
 //! One step of each pipeline on the lab cloth at 21×21 and 101×101
 //! (projective dynamics at its preset and with its direct solve), and of
-//! the assignment's methods on its cloth at 10×10, 30×30 and 100×100.
+//! the assignment's methods on its cloth at 10×10, 30×30 and 100×100; and
+//! self-collision's pair search on a folded sheet at 64² and 101².
 //!
 //! The 101×101 cloth keeps the lab's size (10×10 units) and total mass (441,
 //! spread over the vertices) and the lab's `k = 8000`: on a square grid a
@@ -193,5 +194,52 @@ fn linear(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, steps, linear);
+/// Self-collision's pair search (`SelfContacts::find`) on a cotton sheet
+/// of 1 m at 64² and 101², folded flat in four layers 1.3 thicknesses
+/// apart (the perf page's landing sheet, its folds sharp) and falling at
+/// 1 m/s: the search a landing step makes.
+fn self_collision(c: &mut Criterion) {
+    use bevy::math::{Vec3, Vec3A};
+    use bevy_cloth::collision::SelfCollision;
+    use bevy_cloth::collision::self_contact::{SelfCollisionInput, SelfContacts};
+    use bevy_cloth::model::ClothMaterial;
+
+    let mut group = c.benchmark_group("self_collision");
+    for n in [64, 101] {
+        let model = ClothBuilder::grid(n, n, Vec3::ZERO, Vec3::Z, Vec3::X)
+            .with_material(ClothMaterial::COTTON)
+            .build()
+            .expect("valid cloth");
+        let sc = SelfCollision::for_model(&model);
+        let layer = 0.25;
+        let x: Vec<Vec3A> = ClothState::at_rest(&model, &Affine3A::IDENTITY)
+            .positions
+            .iter()
+            .map(|p| {
+                let j = ((p.x / layer) as usize).min(3);
+                let u = p.x - j as f32 * layer;
+                let along = if j.is_multiple_of(2) { u } else { layer - u };
+                Vec3A::new(along, 0.05 + 1.3 * sc.thickness * j as f32, p.z)
+            })
+            .collect();
+        let v = vec![Vec3A::new(0.0, -1.0, 0.0); x.len()];
+        let mut contacts = SelfContacts::default();
+        group.bench_function(BenchmarkId::new("find", n), |b| {
+            b.iter(|| {
+                contacts.find(
+                    &model,
+                    &x,
+                    &v,
+                    1.0 / 60.0,
+                    SelfCollisionInput::alone(sc),
+                    0.0,
+                );
+                black_box(contacts.pair_count());
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, steps, linear, self_collision);
 criterion_main!(benches);
