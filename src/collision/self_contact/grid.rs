@@ -157,13 +157,12 @@ impl SelfContacts {
     /// box then covers about three cells, not eight, and the fuller cells'
     /// extra candidates are turned away by their boxes (before the
     /// closest approach) and by each entry's mark of its box's lowest
-    /// cells (before reading the other vertex). With both, the search
-    /// adds 1.1 ms, not 2.4 ms, to the median landing step of a 101² sheet
-    /// folded in four (4.7 ms, not 11.9 ms, at 201²; the same pairs, bit
-    /// for bit); cells of 1.5 and 3 times `cell` did worse. The boxes are
-    /// swept relative to the vertices' mean velocity (see the loop): the
-    /// benchmark's sheet falling at 1 m/s as a whole, 1.27 → 0.92 ms at
-    /// 64².
+    /// cells (before reading the other vertex); the same pairs, bit for
+    /// bit, at about half the cost of cells of `cell` while a cloth moves
+    /// (1.5 and 3 times `cell` cost more; the numbers are in the
+    /// CHANGELOG). The boxes are swept relative to the vertices' mean
+    /// velocity (see the loop), so a cloth's common motion does not grow
+    /// them.
     pub(super) fn find_where(
         &mut self,
         x: &[Vec3A],
