@@ -279,21 +279,48 @@ impl Kept {
             .zip(&self.built)
             .fold(Vec3A::ZERO, |c, (&x, &b)| c + (x - b))
             * inv;
-        let mean = v[..n].iter().fold(Vec3A::ZERO, |u, &v| u + v) * inv;
-        // `|x − b − drift| + (|v|/4 + |v − mean|)·dt ≤ skin`, by the
-        // stronger `2·(p² + 2·(|v|²/16 + |v − mean|²)·dt²) ≤ skin²` (no
-        // square roots: this runs every step).
-        let dt2 = 2.0 * dt * dt;
-        let limit = 0.5 * skin * skin;
+        let reach = Reach::of(&v[..n], dt, skin);
         x[..n]
             .iter()
             .zip(&self.built)
             .zip(&v[..n])
-            .all(|((&x, &b), &v)| {
-                (x - b - drift).length_squared()
-                    + (0.0625 * v.length_squared() + (v - mean).length_squared()) * dt2
-                    <= limit
-            })
+            .all(|((&x, &b), &v)| (x - b - drift).length_squared() + reach.motion(v) <= reach.limit)
+    }
+
+    /// Whether a list made now, at `x`, would hold for the step (the test
+    /// of [`holds`](Self::holds) with every vertex where the list was made).
+    fn would_hold(v: &[Vec3A], dt: f32, skin: f32) -> bool {
+        if v.is_empty() {
+            return false;
+        }
+        let reach = Reach::of(v, dt, skin);
+        v.iter().all(|&v| reach.motion(v) <= reach.limit)
+    }
+}
+
+/// `|x − b − drift| + (|v|/4 + |v − mean|)·dt ≤ skin`, tested by the
+/// stronger `2·(p² + 2·(|v|²/16 + |v − mean|²)·dt²) ≤ skin²` (no square
+/// roots: this runs every step): the velocities' mean and the constants.
+struct Reach {
+    mean: Vec3A,
+    dt2: f32,
+    limit: f32,
+}
+
+impl Reach {
+    fn of(v: &[Vec3A], dt: f32, skin: f32) -> Self {
+        let inv = 1.0 / v.len() as f32;
+        Self {
+            mean: v.iter().fold(Vec3A::ZERO, |u, &v| u + v) * inv,
+            dt2: 2.0 * dt * dt,
+            limit: 0.5 * skin * skin,
+        }
+    }
+
+    /// A vertex's own motion's share of the test.
+    #[inline]
+    fn motion(&self, v: Vec3A) -> f32 {
+        (0.0625 * v.length_squared() + (v - self.mean).length_squared()) * self.dt2
     }
 }
 
@@ -408,11 +435,10 @@ impl SelfContacts {
         }
         // Keep the new list if the cloth moves slowly enough (measured as
         // the kept list is checked, from where it is).
+        let keep = alone && n > 0 && Kept::would_hold(&v[..n], dt, skin);
         self.kept.built.clear();
-        self.kept.built.extend_from_slice(&x[..n]);
-        let keep = alone && self.kept.holds(x, v, dt, skin);
-        if !keep {
-            self.kept.built.clear();
+        if keep {
+            self.kept.built.extend_from_slice(&x[..n]);
         }
         let rest = topology.rest_positions();
         // Two vertices joined by a stretch or shear spring: the spring
@@ -424,51 +450,54 @@ impl SelfContacts {
         let mut others = core::mem::take(&mut self.others);
         others.clear();
         others.extend(sc.others.into_iter().flatten());
-        let mut xs = core::mem::take(&mut self.all_x);
-        let mut vs = core::mem::take(&mut self.all_v);
-        xs.clear();
-        vs.clear();
-        xs.extend_from_slice(&x[..n]);
-        if keep {
-            // Where the vertices are, grown by the skin: the list then
-            // covers their motion in this step and the next ones'.
-            vs.resize(n, Vec3A::ZERO);
-        } else {
-            vs.extend_from_slice(&v[..n]);
-        }
-        xs.extend(others.iter().map(|o| o.position));
-        vs.extend(others.iter().map(|_| Vec3A::ZERO));
         let half = 0.5 * thickness;
         let (cell, slack) = if keep {
             (thickness + 2.0 * (slack + skin), slack + skin)
         } else {
             (thickness, slack)
         };
-        self.find_where(
-            &xs,
-            &vs,
-            dt,
-            [cell, slack],
-            |i| {
-                if i < n {
-                    half
-                } else {
-                    others[i - n].half_thickness
-                }
-            },
-            |a, b| match (a < n, b < n) {
-                (true, true) => {
-                    let min = thickness.min(rest[a].distance(rest[b]));
-                    (!(pinned[a] && pinned[b]) && min > 0.0 && !linked.joins(a, b))
-                        .then_some((min, friction))
-                }
-                (true, false) => {
-                    let o = &others[b - n];
-                    (!pinned[a]).then_some((half + o.half_thickness, 0.5 * (friction + o.friction)))
-                }
-                _ => None,
-            },
+        let half_of = |i: usize| {
+            if i < n {
+                half
+            } else {
+                others[i - n].half_thickness
+            }
+        };
+        let pair = |a: usize, b: usize| match (a < n, b < n) {
+            (true, true) => {
+                let min = thickness.min(rest[a].distance(rest[b]));
+                (!(pinned[a] && pinned[b]) && min > 0.0 && !linked.joins(a, b))
+                    .then_some((min, friction))
+            }
+            (true, false) => {
+                let o = &others[b - n];
+                (!pinned[a]).then_some((half + o.half_thickness, 0.5 * (friction + o.friction)))
+            }
+            _ => None,
+        };
+        let (mut xs, mut vs) = (
+            core::mem::take(&mut self.all_x),
+            core::mem::take(&mut self.all_v),
         );
+        if others.is_empty() && !keep {
+            // A cloth alone, moving: its own positions and velocities, not
+            // copies.
+            self.find_where(&x[..n], &v[..n], dt, [cell, slack], half_of, pair);
+        } else {
+            xs.clear();
+            vs.clear();
+            xs.extend_from_slice(&x[..n]);
+            if keep {
+                // Where the vertices are, grown by the skin: the list then
+                // covers their motion in this step and the next ones'.
+                vs.resize(n, Vec3A::ZERO);
+            } else {
+                vs.extend_from_slice(&v[..n]);
+            }
+            xs.extend(others.iter().map(|o| o.position));
+            vs.extend(others.iter().map(|_| Vec3A::ZERO));
+            self.find_where(&xs, &vs, dt, [cell, slack], half_of, pair);
+        }
         self.own = n;
         self.others = others;
         self.linked = linked;
