@@ -21,8 +21,8 @@
 //!   the thickness during the step, from each vertex's swept box (its
 //!   position and where its velocity takes it, relative to the vertices'
 //!   mean velocity: a pair's closest approach is the same in that frame,
-//!   and a cloth falling as a whole has small boxes) in a grid of cells of twice
-//!   the thickness (a hash table filled by a counting sort; each pair
+//!   and a cloth falling as a whole has small boxes) in a grid of cells of
+//!   2.5 times the thickness (a hash table filled by a counting sort; each pair
 //!   tested once, in the lowest cell the two boxes share, and first by
 //!   the boxes themselves). A pair's
 //!   minimum distance is the thickness, or its rest distance where that is

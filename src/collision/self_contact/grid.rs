@@ -153,13 +153,13 @@ impl SelfContacts {
     /// [`find`](Self::find) over any vertices: each vertex's box grown by
     /// `half(i)` plus `slack` plus a quarter of its motion, about `cell` (m)
     /// wide at rest, and `pair(a, b)` the least distance and friction of a
-    /// pair (`None`: not a pair). The grid's cells are twice `cell`: each
-    /// box then covers about three cells, not eight, and the fuller cells'
-    /// extra candidates are turned away by their boxes (before the
+    /// pair (`None`: not a pair). The grid's cells are 2.5 times `cell`:
+    /// each box then covers about three cells, not eight, and the fuller
+    /// cells' extra candidates are turned away by their boxes (before the
     /// closest approach) and by each entry's mark of its box's lowest
     /// cells (before reading the other vertex); the same pairs, bit for
-    /// bit, at about half the cost of cells of `cell` while a cloth moves
-    /// (1.5 and 3 times `cell` cost more; the numbers are in the
+    /// bit, at less than half the cost of cells of `cell` while a cloth
+    /// moves (twice and three times `cell` cost more; the numbers are in the
     /// CHANGELOG). The boxes are swept relative to the vertices' mean
     /// velocity (see the loop), so a cloth's common motion does not grow
     /// them.
@@ -179,7 +179,7 @@ impl SelfContacts {
         if n < 2 || cell.is_nan() || cell <= 0.0 {
             return;
         }
-        let inv = 0.5 / cell;
+        let inv = 0.4 / cell;
         // Each vertex's margin and swept box, in metres and in cells.
         let mut total = 0usize;
         self.margins.clear();
@@ -218,9 +218,10 @@ impl SelfContacts {
             }
         }
         // A counting sort of the (cell, vertex) entries into the buckets of
-        // a hash table of about twice their number: linear, where a sort of
-        // the entries was most of the step's self-collision cost.
-        let buckets = (2 * total).next_power_of_two().max(2);
+        // a hash table of at least their number (fewer cells than entries
+        // share it): linear, where a sort of the entries was most of the
+        // step's self-collision cost.
+        let buckets = total.next_power_of_two().max(2);
         let mask = buckets as u64 - 1;
         self.starts.clear();
         self.starts.resize(buckets + 1, 0);
@@ -252,9 +253,13 @@ impl SelfContacts {
             });
         }
         let (margins, extents) = (&self.margins, &self.extents);
-        for b in 0..buckets {
-            let (start, end) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+        // Bucket by bucket, the empty ones passed over: from each bucket's
+        // first entry, its cell's bucket says where it ends.
+        let mut start = 0;
+        while start < total {
+            let end = self.starts[bucket(self.entries[start].cell, mask) + 1] as usize;
             let here = &self.entries[start..end];
+            start = end;
             for (k, ea) in here.iter().enumerate() {
                 let a = (ea.vertex & (FIRST_FLAG - 1)) as usize;
                 let [lo_a, hi_a] = extents[a];
