@@ -218,10 +218,9 @@ impl SelfContacts {
             }
         }
         // A counting sort of the (cell, vertex) entries into the buckets of
-        // a hash table of at least their number (fewer cells than entries
-        // share it): linear, where a sort of the entries was most of the
-        // step's self-collision cost.
-        let buckets = total.next_power_of_two().max(2);
+        // a hash table of about twice their number: linear, where a sort of
+        // the entries was most of the step's self-collision cost.
+        let buckets = (2 * total).next_power_of_two().max(2);
         let mask = buckets as u64 - 1;
         self.starts.clear();
         self.starts.resize(buckets + 1, 0);
