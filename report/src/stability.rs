@@ -434,7 +434,11 @@ fn contact_section(
          a cell is judged by what a player would see. **Folded**: a {0}² sheet of 1 m folded \
          in four (layers 1.3 thicknesses apart) dropped 5 cm onto the ground, {1} s: the exact \
          check's count of mesh edges through one of the sheet's own triangles, the most after \
-         any step; the **long** fold is the same at {4}² for {5} s (issue N's target). \
+         any step; the **thin** fold is the same at 0.3 of the edges thick (layers as far \
+         apart as the default's), where vertex pairs alone let layers through and \
+         vertex–triangle pairs keep them apart, also in the objective of `pd`, `pd-anderson`, \
+         `newton` and `exact`; the **long** fold is the same at {4}² for {5} s (issue N's \
+         target). \
          **Ball**: a free, level {2}² sheet of 2 m, a ball thrown up through it at \
          30 m/s (half a metre a step) from 0.4 m below it for eight steps: `held` if a ray from the ball's centre \
          along its motion met the sheet after every step and no vertex was left inside the \

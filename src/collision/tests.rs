@@ -739,4 +739,72 @@ mod untangle {
             sc.thickness
         );
     }
+
+    /// A thin setting (0.3 of the edges): the upper layer, over the middle
+    /// of the lower one's triangles (no vertex within the thickness of
+    /// another), moves down by three thicknesses in one step, through the
+    /// lower layer. Vertex pairs cannot see it; the vertex–triangle pairs
+    /// keep it on its side, a thickness apart, and a default setting
+    /// (above [`FACES_BELOW`]) finds none.
+    #[test]
+    fn a_thin_setting_keeps_a_layer_from_passing_through_another() {
+        use crate::collision::self_contact::{FACES_BELOW, SelfContacts};
+        let n = 16;
+        let model = two_layers(n);
+        let h = 1.0 / (n - 1) as f32;
+        let mut sc = SelfCollision::for_model(&model);
+        assert!((sc.thickness - 0.9 * h).abs() < 1e-6);
+        let mut contacts = SelfContacts::default();
+        let start_at = |thickness: f32| {
+            let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+            let nn = (n * n) as usize;
+            for p in &mut x[nn..] {
+                *p = Vec3A::new(p.x + h / 3.0, 2.0 * thickness, p.z + h / 3.0);
+            }
+            // Its middle only, so that its edges cross the lower layer.
+            let v = x
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let middle = (p.x - 0.5).abs() < 0.25 && (p.z - 0.5).abs() < 0.25;
+                    Vec3A::new(
+                        0.0,
+                        -3.0 * thickness * 60.0 * f32::from(u8::from(i >= nn && middle)),
+                        0.0,
+                    )
+                })
+                .collect::<Vec<_>>();
+            (x, v)
+        };
+        let dt = 1.0 / 60.0;
+        let (x, v) = start_at(sc.thickness);
+        contacts.find(&model, &x, &v, dt, SelfCollisionInput::alone(sc), 0.0);
+        assert_eq!(contacts.face_pair_count(), 0, "0.9 > {FACES_BELOW}");
+        sc.thickness = 0.3 * h;
+        let (start, v) = start_at(sc.thickness);
+        contacts.find(&model, &start, &v, dt, SelfCollisionInput::alone(sc), 0.0);
+        assert!(contacts.face_pair_count() > 0);
+        let mut x: Vec<Vec3A> = start.iter().zip(&v).map(|(&x, &v)| x + v * dt).collect();
+        let mut check = IntersectionCheck::default();
+        let through = count_intersections(&model, &x, &mut check);
+        assert!(through > 100, "the step's motion passes through: {through}");
+        for _ in 0..4 {
+            contacts.resolve(&model, &mut x, |i| start[i], 1.0);
+        }
+        assert_eq!(count_intersections(&model, &x, &mut check), 0);
+        // Every upper vertex is above the lower vertex nearest it.
+        let nn = (n * n) as usize;
+        let lowest_gap = x[nn..]
+            .iter()
+            .map(|p| {
+                let (j, i) = ((p.x / h).round() as usize, (p.z / h).round() as usize);
+                p.y - x[(i.min(n as usize - 1)) * n as usize + j.min(n as usize - 1)].y
+            })
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            lowest_gap > 0.5 * sc.thickness,
+            "{lowest_gap} against {}",
+            sc.thickness
+        );
+    }
 }

@@ -77,7 +77,7 @@ pub(super) fn span(lo: [i64; 3], hi: [i64; 3]) -> i64 {
 /// and how many there are, if they are at most [`MAX_CELLS`] (`None`: more,
 /// or not finite). In `f32` and `i32` lanes: this runs for every vertex in
 /// every search.
-fn cell_box(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<(CellBox, usize)> {
+pub(super) fn cell_box(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<(CellBox, usize)> {
     // Well inside `i32` (a NaN fails the comparisons).
     const LIMIT: f32 = 1e9;
     let (lo, hi) = ((lo * inv).floor(), (hi * inv).floor());
@@ -100,7 +100,7 @@ fn cell_box(lo: Vec3A, hi: Vec3A, inv: f32) -> Option<(CellBox, usize)> {
 pub(super) type CellBox = [[i32; 3]; 2];
 
 /// A box of no cells.
-const EMPTY_BOX: CellBox = [[0; 3], [-1; 3]];
+pub(super) const EMPTY_BOX: CellBox = [[0; 3], [-1; 3]];
 
 /// One vertex in one cell of the grid.
 #[derive(Clone, Copy, Debug, Default)]
@@ -119,7 +119,7 @@ const FIRST_FLAG: u32 = 1 << 29;
 const ALL_FLAGS: u32 = 7 << 29;
 
 /// Calls `f` with every cell of the box of cells `b` (inclusive).
-fn for_each_cell(b: &CellBox, mut f: impl FnMut([i32; 3])) {
+pub(super) fn for_each_cell(b: &CellBox, mut f: impl FnMut([i32; 3])) {
     for cx in b[0][0]..=b[1][0] {
         for cy in b[0][1]..=b[1][1] {
             for cz in b[0][2]..=b[1][2] {
@@ -130,11 +130,50 @@ fn for_each_cell(b: &CellBox, mut f: impl FnMut([i32; 3])) {
 }
 
 /// The hash-table bucket of cell `c` (`mask`: the table's size less one).
-fn bucket(c: [i32; 3], mask: u64) -> usize {
+pub(super) fn bucket(c: [i32; 3], mask: u64) -> usize {
     let h = (c[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
         ^ (c[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
         ^ (c[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
     ((h ^ (h >> 29)) & mask) as usize
+}
+
+/// Counting-sorts the cells of `boxes` (`total` of them) into a hash table
+/// of about twice their number, each cell's entry made by `entry(index,
+/// box, cell)`: bucket `b`'s entries are `entries[starts[b]..starts[b +
+/// 1]]`, in increasing index order. Returns the table's mask (for
+/// [`bucket`]).
+pub(super) fn fill_table<E: Copy + Default>(
+    boxes: &[CellBox],
+    total: usize,
+    starts: &mut Vec<u32>,
+    entries: &mut Vec<E>,
+    mut entry: impl FnMut(usize, &CellBox, [i32; 3]) -> E,
+) -> u64 {
+    let buckets = (2 * total).next_power_of_two().max(2);
+    let mask = buckets as u64 - 1;
+    starts.clear();
+    starts.resize(buckets + 1, 0);
+    for b in boxes {
+        for_each_cell(b, |c| starts[bucket(c, mask)] += 1);
+    }
+    let mut sum = 0;
+    for s in starts.iter_mut() {
+        sum += *s;
+        *s = sum;
+    }
+    // `starts[b]` is now the end of bucket `b`: filled backwards from the
+    // last box, each bucket ends up in increasing order and `starts[b]` at
+    // its start.
+    entries.clear();
+    entries.resize(total, E::default());
+    for (i, b) in boxes.iter().enumerate().rev() {
+        for_each_cell(b, |cell| {
+            let s = &mut starts[bucket(cell, mask)];
+            *s -= 1;
+            entries[*s as usize] = entry(i, b, cell);
+        });
+    }
+    mask
 }
 
 /// The least distance between two points moving in straight lines over
@@ -220,37 +259,22 @@ impl SelfContacts {
         // A counting sort of the (cell, vertex) entries into the buckets of
         // a hash table of about twice their number: linear, where a sort of
         // the entries was most of the step's self-collision cost.
-        let buckets = (2 * total).next_power_of_two().max(2);
-        let mask = buckets as u64 - 1;
-        self.starts.clear();
-        self.starts.resize(buckets + 1, 0);
-        for b in &self.boxes {
-            for_each_cell(b, |c| self.starts[bucket(c, mask)] += 1);
-        }
-        let mut sum = 0;
-        for s in &mut self.starts {
-            sum += *s;
-            *s = sum;
-        }
-        // `starts[b]` is now the end of bucket `b`: filled backwards from
-        // the last vertex, each bucket ends up in increasing vertex order
-        // and `starts[b]` at its start.
-        self.entries.clear();
-        self.entries.resize(total, Entry::default());
-        for (i, b) in self.boxes.iter().enumerate().rev() {
-            for_each_cell(b, |cell| {
-                let s = &mut self.starts[bucket(cell, mask)];
-                *s -= 1;
+        let mask = fill_table(
+            &self.boxes,
+            total,
+            &mut self.starts,
+            &mut self.entries,
+            |i, b, cell| {
                 // Which of the box's lowest cells (per axis) this one is.
                 let lowest = (0..3)
                     .filter(|&k| cell[k] == b[0][k])
                     .fold(0, |f, k| f | FIRST_FLAG << k);
-                self.entries[*s as usize] = Entry {
+                Entry {
                     vertex: i as u32 | lowest,
                     cell,
-                };
-            });
-        }
+                }
+            },
+        );
         let (margins, extents) = (&self.margins, &self.extents);
         // Bucket by bucket, the empty ones passed over: from each bucket's
         // first entry, its cell's bucket says where it ends.

@@ -18,6 +18,8 @@ pub const SUBSTEP_SKIN: f32 = 0.25;
 pub(super) struct Active {
     /// Indices of the step's pairs that can touch.
     pairs: Vec<u32>,
+    /// Indices of the step's vertex–triangle pairs that can touch.
+    faces: Vec<u32>,
     /// The cloth's vertices when `pairs` was made (empty: to be made).
     at: Vec<Vec3A>,
     /// How far beyond its least distance a pair is kept.
@@ -72,10 +74,20 @@ impl SelfContacts {
         }
         if let Some(from) = rest {
             touching += self
-                .resolve_weighted(self.pairs[from..].iter(), x, start, progress, weight)
+                .resolve_weighted(self.pairs[from..].iter(), x, &start, progress, weight)
                 .touching;
             // A vertex moved beyond the list's reach.
             self.active.at.clear();
+        }
+        if !self.active.faces.is_empty() {
+            let weight = |i| self.weight(model, i);
+            // (Their pushes are seen by the next substep's check of the
+            // lists, as the pairs' own are.)
+            let listed = &self.active.faces;
+            touching += self
+                .faces
+                .resolve_listed(listed, x, &start, progress, &weight)
+                .touching;
         }
         touching
     }
@@ -105,6 +117,8 @@ impl SelfContacts {
         }
         active.at.clear();
         active.at.extend_from_slice(&x[..own]);
+        active.faces.clear();
+        self.faces.near(&x[..own], active.skin, &mut active.faces);
         active.pairs.clear();
         for (k, p) in self.pairs.iter().enumerate() {
             let (a, b) = (p.a as usize, p.b as usize);
