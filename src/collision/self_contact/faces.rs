@@ -6,7 +6,9 @@
 
 use bevy::math::Vec3A;
 
-use super::grid::{CellBox, EMPTY_BOX, Linked, bucket, cell_box, fill_table, for_each_cell};
+use super::grid::{
+    CellBox, EMPTY_BOX, Linked, bucket, cell_box, fill_table, for_each_cell, mean_velocity,
+};
 use super::{Pass, UNTANGLE, shortest_edge};
 use crate::model::ClothModel;
 
@@ -197,13 +199,7 @@ impl Faces {
         }
         // Swept in the frame of the vertices' mean velocity, as the vertex
         // pairs are.
-        let (sum, count) = v[..n]
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((Vec3A::ZERO, 0u32), |(s, c), &v| (s + v, c + 1));
-        let frame = Some(sum / count.max(1) as f32)
-            .filter(|u| u.is_finite())
-            .unwrap_or(Vec3A::ZERO);
+        let frame = mean_velocity(&v[..n]);
         self.vertex_boxes.clear();
         self.vertex_boxes
             .extend(x[..n].iter().zip(&v[..n]).map(|(&x, &v)| {

@@ -176,6 +176,18 @@ pub(super) fn fill_table<E: Copy + Default>(
     mask
 }
 
+/// The mean of the finite velocities of `v` (zero if there are none, or
+/// if it is not finite): the frame the swept boxes are swept in.
+pub(super) fn mean_velocity(v: &[Vec3A]) -> Vec3A {
+    let (sum, count) = v
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((Vec3A::ZERO, 0u32), |(s, c), &v| (s + v, c + 1));
+    Some(sum / count.max(1) as f32)
+        .filter(|u| u.is_finite())
+        .unwrap_or(Vec3A::ZERO)
+}
+
 /// The least distance between two points moving in straight lines over
 /// `t ∈ [0, 1]`: `d` apart at the start, their difference moving by `dd`.
 fn closest_approach(d: Vec3A, dd: Vec3A) -> f32 {
@@ -227,13 +239,7 @@ impl SelfContacts {
         // mean velocity: two paths meet in it where they meet in the world,
         // and a cloth falling or carried as a whole has boxes the size of
         // its vertices' motion relative to each other, not of its speed.
-        let (sum, count) = v[..n]
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((Vec3A::ZERO, 0u32), |(s, c), &v| (s + v, c + 1));
-        let frame = Some(sum / count.max(1) as f32)
-            .filter(|u| u.is_finite())
-            .unwrap_or(Vec3A::ZERO);
+        let frame = mean_velocity(&v[..n]);
         for i in 0..n {
             let end = x[i] + v[i] * dt;
             let m = half(i) + slack + 0.25 * v[i].length() * dt;

@@ -287,6 +287,24 @@ impl PairTerms {
 mod tests {
     use super::*;
 
+    /// `g` is `t`'s energy's gradient at `x` (central differences).
+    fn assert_gradient_is_energys(t: &PairTerms, x: &[DVec3], g: &[DVec3]) {
+        let h = 1e-6;
+        for i in 0..x.len() {
+            for k in 0..3 {
+                let (mut plus, mut minus) = (x.to_vec(), x.to_vec());
+                plus[i][k] += h;
+                minus[i][k] -= h;
+                let numeric = (t.energy(&plus) - t.energy(&minus)) / (2.0 * h);
+                assert!(
+                    (numeric - g[i][k]).abs() < 1e-6,
+                    "{i} {k}: {numeric} {}",
+                    g[i][k]
+                );
+            }
+        }
+    }
+
     fn terms() -> PairTerms {
         PairTerms {
             terms: vec![
@@ -335,20 +353,7 @@ mod tests {
         // (a descent moves against the gradient).
         assert!(g[3].y < 0.0 && g[4].y > 0.0, "{g:?}");
         assert!((g[3] + g[4]).length() < 1e-12);
-        let h = 1e-6;
-        for i in 0..5 {
-            for k in 0..3 {
-                let (mut plus, mut minus) = (x, x);
-                plus[i][k] += h;
-                minus[i][k] -= h;
-                let numeric = (t.energy(&plus) - t.energy(&minus)) / (2.0 * h);
-                assert!(
-                    (numeric - g[i][k]).abs() < 1e-6,
-                    "{i} {k}: {numeric} {}",
-                    g[i][k]
-                );
-            }
-        }
+        assert_gradient_is_energys(&t, &x, &g);
         // The diagonal blocks: `c·nnᵀ` on both ends of the own pair, one
         // end of the fixed one.
         let mut blocks = [DMat3::ZERO; 5];
@@ -397,20 +402,7 @@ mod tests {
         t.gradient(&x, |i, v| g[i] += v);
         // A descent lifts the vertex and lowers the corners.
         assert!(g[3].y < 0.0 && g[0].y > 0.0, "{g:?}");
-        let h = 1e-6;
-        for i in 0..4 {
-            for k in 0..3 {
-                let (mut plus, mut minus) = (x, x);
-                plus[i][k] += h;
-                minus[i][k] -= h;
-                let numeric = (t.energy(&plus) - t.energy(&minus)) / (2.0 * h);
-                assert!(
-                    (numeric - g[i][k]).abs() < 1e-6,
-                    "{i} {k}: {numeric} {}",
-                    g[i][k]
-                );
-            }
-        }
+        assert_gradient_is_energys(&t, &x, &g);
         let mut blocks = [DMat3::ZERO; 4];
         t.diagonal(&x, |i, b| blocks[i] += b);
         assert_eq!(blocks[3].y_axis.y, 5.0);
