@@ -171,9 +171,10 @@ impl Faces {
     /// triangle that does not hold it and is not beside it (across one of
     /// its edges, or two of its corners joined to the vertex by a stretch
     /// or shear spring: a crease folds them onto each other) whose
-    /// swept boxes meet, grown by the thickness, and that can come within
-    /// the thickness of the triangle's plane or cross it in the step. None
-    /// where the thickness does not need them.
+    /// swept boxes meet, grown by the thickness, and that are within the
+    /// thickness of each other plus what the step can bring them closer
+    /// (the vertex's motion and its fastest corner's, a quarter more, and
+    /// twice `slack`). None where the thickness does not need them.
     pub(super) fn find(&mut self, x: &[Vec3A], v: &[Vec3A], s: FaceSearch<'_>) {
         self.pairs.clear();
         let FaceSearch {
