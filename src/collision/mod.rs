@@ -528,6 +528,16 @@ pub(crate) fn inverse_pushes<const N: usize>(
     depth: f32,
 ) -> Option<[f32; N]> {
     let inverse = vertices.map(|i| self_contact::inverse_mass(model, i));
+    pushes(weights, inverse, depth)
+}
+
+/// [`inverse_pushes`] for vertices of inverse masses `inverse`.
+#[inline]
+pub(crate) fn pushes<const N: usize>(
+    weights: [f32; N],
+    inverse: [f32; N],
+    depth: f32,
+) -> Option<[f32; N]> {
     let sum: f32 = (0..N).map(|k| weights[k] * weights[k] * inverse[k]).sum();
     (sum > 0.0).then(|| std::array::from_fn(|k| weights[k] * inverse[k] * depth / sum))
 }

@@ -38,7 +38,8 @@
 //! `pd`). The default setting (0.9) finds none and pays nothing. Edge–edge
 //! pairs are not built: two edges can still cross with no vertex over a
 //! triangle, which the exact check below counts (a few edges at most in
-//! the CHANGELOG's runs).
+//! the CHANGELOG's runs, in crumpled corners; pairs between such
+//! neighbouring edges, tried, stretched the sheet: `docs/measurements.md`).
 //!
 //! # The loop
 //!
@@ -580,7 +581,9 @@ impl SelfContacts {
     /// takes its own share of the push. `progress` is how far through the
     /// step the substep ends (1 after the step): a pair that started closer
     /// than its least distance is parted only that far along
-    /// ([`UNTANGLE`]). Returns the pairs that were touching.
+    /// ([`UNTANGLE`]). A thin setting's vertex–triangle pairs follow, in
+    /// the same pass (see the [module docs](self), "Thin cloth"). Returns
+    /// the pairs that were touching, of both kinds.
     pub fn resolve(
         &self,
         model: &ClothModel,

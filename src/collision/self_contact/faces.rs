@@ -400,14 +400,6 @@ fn resolve_all<'p>(
     pass
 }
 
-/// The share of a push along a constraint's gradient each of four vertices
-/// takes: `grad[k]·w[k]/Σ grad²·w` (0 for all where none can move).
-#[inline]
-fn shares(grad: [f32; 4], w: [f32; 4]) -> Option<[f32; 4]> {
-    let sum: f32 = (0..4).map(|k| grad[k] * grad[k] * w[k]).sum();
-    (sum > 0.0).then(|| core::array::from_fn(|k| grad[k] * w[k] / sum))
-}
-
 /// One pair of [`Faces::resolve`]: how deep it was, as a share of its
 /// least distance, if it was pushed.
 #[inline]
@@ -437,23 +429,54 @@ fn resolve_pair(
     if bary.iter().any(|&u| u < -OVER) {
         return None;
     }
-    let vertices = [i, a, b, c];
-    let grad = [1.0, -bary[0], -bary[1], -bary[2]];
-    let share = shares(grad, vertices.map(weight))?;
     let depth = min - h;
+    let grad = [1.0, -bary[0], -bary[1], -bary[2]];
+    push(
+        [i, a, b, c],
+        grad,
+        normal,
+        depth,
+        p.friction,
+        x,
+        start,
+        weight,
+    )?;
+    Some(depth / p.min)
+}
+
+/// Moves `vertices` along `normal` so that the point `Σ grad[k]·x[k]`
+/// moves out by `depth`, each taking its share by its weight in that point
+/// and its inverse mass (from `weight`; see
+/// [`inverse_pushes`](crate::collision::inverse_pushes)), then Coulomb
+/// friction on that point's motion since `start` across `normal`, up to
+/// `friction` times `depth`. `None` (nothing moved) if none of them can
+/// move.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn push(
+    vertices: [usize; 4],
+    grad: [f32; 4],
+    normal: Vec3A,
+    depth: f32,
+    friction: f32,
+    x: &mut [Vec3A],
+    start: &impl Fn(usize) -> Vec3A,
+    weight: &impl Fn(usize) -> f32,
+) -> Option<()> {
+    let share = crate::collision::pushes(grad, vertices.map(weight), 1.0)?;
     let mut moved = vertices.map(|k| x[k]);
     for k in 0..4 {
         moved[k] += normal * (share[k] * depth);
     }
-    if p.friction > 0.0 {
-        // The vertex's motion since `start` relative to the triangle's
-        // point under it, across the normal.
-        let motion = |k: usize| moved[k] - start(vertices[k]);
-        let relative = motion(0) - bary[0] * motion(1) - bary[1] * motion(2) - bary[2] * motion(3);
+    if friction > 0.0 {
+        // The point's motion since `start`, across the normal.
+        let relative: Vec3A = (0..4)
+            .map(|k| (moved[k] - start(vertices[k])) * grad[k])
+            .sum();
         let tangential = relative - relative.dot(normal) * normal;
         let length = tangential.length();
         if length > 0.0 {
-            let cut = (p.friction * depth).min(length);
+            let cut = (friction * depth).min(length);
             let direction = tangential / length;
             for k in 0..4 {
                 moved[k] -= direction * (share[k] * cut);
@@ -463,7 +486,7 @@ fn resolve_pair(
     for k in 0..4 {
         x[vertices[k]] = moved[k];
     }
-    Some(depth / p.min)
+    Some(())
 }
 
 #[cfg(test)]
