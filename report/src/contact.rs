@@ -505,6 +505,19 @@ mod tests {
     }
 
     #[test]
+    fn edge_pairs_keep_the_thin_folds_crumpled_corners_from_crossing() {
+        // Over 3 s at 0.3 of the edges, the 32² sheet's corners crumple at
+        // the scale of its triangles, and under `chebyshev` two edges a row
+        // and a column apart passed through each other with no vertex over
+        // a triangle (2 edges through, with vertex–triangle pairs alone).
+        let method = bevy_cloth::methods::preset("chebyshev").unwrap().method;
+        let with = run(&folded(32, 4, 3.0).thin(0.3), &method);
+        assert_eq!((with.caught, with.failed.clone()), (None, None));
+        assert_eq!(with.penetrations, 0, "{with:?}");
+        assert!(with.max_stretch < 0.1, "{with:?}");
+    }
+
+    #[test]
     fn pd_keeps_a_sheet_it_solves_by_multigrid_apart_once_it_lands() {
         // 64² is the size from which `pd` solves its global system by
         // multigrid. Its plain iterations (its Chebyshev acceleration is

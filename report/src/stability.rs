@@ -436,8 +436,8 @@ fn contact_section(
          check's count of mesh edges through one of the sheet's own triangles, the most after \
          any step; the **thin** fold is the same at 0.3 of the edges thick (layers as far \
          apart as the default's), where vertex pairs alone let layers through and \
-         vertex–triangle pairs keep them apart, also in the objective of `pd`, `pd-anderson`, \
-         `newton` and `exact`; the **long** fold is the same at {4}² for {5} s (issue N's \
+         vertex–triangle and edge–edge pairs keep them apart, the first also in the objective \
+         of `pd`, `pd-anderson`, `newton` and `exact`; the **long** fold is the same at {4}² for {5} s (issue N's \
          target). \
          **Ball**: a free, level {2}² sheet of 2 m, a ball thrown up through it at \
          30 m/s (half a metre a step) from 0.4 m below it for eight steps: `held` if a ray from the ball's centre \

@@ -35,11 +35,26 @@
 //! half-space on the vertex's height over the triangle's point under it at
 //! the step's start (after their step alone, the pushes fought their stiff
 //! springs: a 64² sheet folded at 0.3 of its edges stretched 127 % under
-//! `pd`). The default setting (0.9) finds none and pays nothing. Edge–edge
-//! pairs are not built: two edges can still cross with no vertex over a
-//! triangle, which the exact check below counts (a few edges at most in
-//! the CHANGELOG's runs, in crumpled corners; pairs between such
-//! neighbouring edges, tried, stretched the sheet: `docs/measurements.md`).
+//! `pd`). The default setting (0.9) finds none and pays nothing.
+//!
+//! Two edges can still pass through each other with no vertex over a
+//! triangle (where the cloth crumples at the scale of its triangles, or
+//! two strips cross like an X). A thin setting so also finds edge–edge
+//! pairs (`edges.rs`): each two triangle edges that share no vertex, in
+//! the same grid, kept where they can come within half the thickness in
+//! the step; each remembers the direction from the first edge's closest
+//! point to the second's when the step began, and while their closest
+//! points are nearer than half the thickness along it (or crossed to the
+//! other side) and not slid apart across it, they are pushed back apart,
+//! each end taking its share by its weight in the closest point and its
+//! inverse mass, with friction, in the same passes and terms as the
+//! vertex–triangle pairs. Half the thickness, not all of it: the
+//! vertex–triangle pairs hold resting layers a thickness apart, and edges
+//! crossing each other there would push in every pass. Two edges a row
+//! and a column apart (two or three of their ends joined by springs) are
+//! kept a tenth of that apart: only from passing through each other (held
+//! further apart, a crumpled corner stretched against its springs; the
+//! measurements are in `docs/measurements.md`).
 //!
 //! # The loop
 //!
@@ -108,6 +123,7 @@ use crate::model::{ClothModel, ClothState};
 use grid::{CellBox, Entry, Linked};
 
 mod check;
+mod edges;
 mod faces;
 mod grid;
 mod layers;
@@ -130,8 +146,8 @@ pub use substeps::SUBSTEP_SKIN;
 pub struct SelfCollision {
     /// How far apart any two vertices are kept (m), and a vertex from a
     /// triangle under it: below the cloth's shortest rest edge. Below
-    /// [`FACES_BELOW`] of it, vertex–triangle pairs are searched too (see
-    /// the [module docs](self)).
+    /// [`FACES_BELOW`] of it, vertex–triangle and edge–edge pairs are
+    /// searched too (see the [module docs](self)).
     pub thickness: f32,
     /// Coulomb friction between touching parts of the cloth (0: none).
     pub friction: f32,
@@ -269,8 +285,9 @@ pub struct SelfContacts {
     active: substeps::Active,
     /// Which vertices a stretch or shear spring joins.
     linked: Linked,
-    /// The step's vertex–triangle pairs, for a thin setting.
+    /// The step's vertex–triangle and edge–edge pairs, for a thin setting.
     faces: faces::Faces,
+    edges: edges::Edges,
 }
 
 /// How far beyond the thickness, as a share of it, the pairs of a cloth
@@ -437,20 +454,24 @@ impl SelfContacts {
     ) {
         let (thickness, friction) = (sc.setting.thickness, sc.setting.friction);
         self.active.reset(thickness);
-        // A thin setting's vertex–triangle pairs: found anew every step.
+        // A thin setting's vertex–triangle and edge–edge pairs: found anew
+        // every step.
         self.linked.update(model);
-        self.faces.find(
-            x,
-            v,
-            faces::FaceSearch {
-                model,
-                linked: &self.linked,
-                dt,
-                thickness,
-                friction,
-                slack,
-            },
-        );
+        let search = faces::FaceSearch {
+            model,
+            linked: &self.linked,
+            dt,
+            thickness,
+            friction,
+            slack,
+        };
+        if self.faces.find(x, v, search) {
+            let faces = &self.faces;
+            let grid = (faces.frame, faces.inv);
+            self.edges.find(x, v, &faces.vertex_boxes, grid, &search);
+        } else {
+            self.edges.pairs.clear();
+        }
         let n = model.vertex_count().min(x.len()).min(v.len());
         let pinned = model.pinned();
         let topology = model.topology();
@@ -581,9 +602,9 @@ impl SelfContacts {
     /// takes its own share of the push. `progress` is how far through the
     /// step the substep ends (1 after the step): a pair that started closer
     /// than its least distance is parted only that far along
-    /// ([`UNTANGLE`]). A thin setting's vertex–triangle pairs follow, in
-    /// the same pass (see the [module docs](self), "Thin cloth"). Returns
-    /// the pairs that were touching, of both kinds.
+    /// ([`UNTANGLE`]). A thin setting's vertex–triangle and edge–edge
+    /// pairs follow, in the same pass (see the [module docs](self), "Thin
+    /// cloth"). Returns the pairs that were touching, of every kind.
     pub fn resolve(
         &self,
         model: &ClothModel,
@@ -595,12 +616,19 @@ impl SelfContacts {
         self.resolve_weighted(self.pairs.iter(), x, &start, progress, weight)
             .touching
             + self.faces.resolve(x, &start, progress, &weight).touching
+            + self.edges.resolve(x, &start, progress, &weight).touching
     }
 
     /// Vertex–triangle pairs found for the step: none unless the thickness
     /// is below [`FACES_BELOW`] of the cloth's shortest rest edge.
     pub fn face_pair_count(&self) -> usize {
         self.faces.pairs.len()
+    }
+
+    /// Edge–edge pairs found for the step: none unless the thickness is
+    /// below [`FACES_BELOW`] of the cloth's shortest rest edge.
+    pub fn edge_pair_count(&self) -> usize {
+        self.edges.pairs.len()
     }
 
     /// A vertex's inverse mass: the cloth's own, or another cloth's.
@@ -622,14 +650,9 @@ impl SelfContacts {
         progress: f32,
         weight: impl Fn(usize) -> f32,
     ) -> Pass {
-        let mut pass = Pass::default();
-        for p in pairs {
-            if let Some(depth) = self.resolve_pair(p, x, &start, progress, &weight) {
-                pass.touching += 1;
-                pass.deepest = pass.deepest.max(depth);
-            }
-        }
-        pass
+        Pass::over(pairs, |p| {
+            self.resolve_pair(p, x, &start, progress, &weight)
+        })
     }
 
     /// One pair of [`resolve_weighted`](Self::resolve_weighted): if it was
@@ -714,6 +737,25 @@ pub(crate) struct Pass {
     pub(crate) deepest: f32,
 }
 
+impl Pass {
+    /// A pass over `pairs`, each resolved by `push` (how deep it was, as a
+    /// share of its least distance, if it was pushed).
+    #[inline]
+    pub(crate) fn over<P>(
+        pairs: impl Iterator<Item = P>,
+        mut push: impl FnMut(P) -> Option<f32>,
+    ) -> Self {
+        let mut pass = Self::default();
+        for p in pairs {
+            if let Some(depth) = push(p) {
+                pass.touching += 1;
+                pass.deepest = pass.deepest.max(depth);
+            }
+        }
+        pass
+    }
+}
+
 /// Up to [`AFTER_STEP_PASSES`] passes, until one finds nothing touching or
 /// pushes nothing deeper than [`SETTLED`]; the first pass's count of
 /// touching pairs (what the step left too close).
@@ -771,9 +813,10 @@ impl SelfContacts {
             let x = &mut state.positions[..n];
             let vertices = self.resolve_weighted(self.pairs.iter(), x, start, 1.0, weight);
             let faces = self.faces.resolve(x, &start, 1.0, &weight);
+            let edges = self.edges.resolve(x, &start, 1.0, &weight);
             Pass {
-                touching: vertices.touching + faces.touching,
-                deepest: vertices.deepest.max(faces.deepest),
+                touching: vertices.touching + faces.touching + edges.touching,
+                deepest: vertices.deepest.max(faces.deepest).max(edges.deepest),
             }
         });
         for ((v, &x), &s) in state

@@ -807,4 +807,66 @@ mod untangle {
             sc.thickness
         );
     }
+
+    /// Two strips of one cloth crossing like an X, the second coming down
+    /// through the first in one step, tilted, so that its long edges pass
+    /// through the first's triangles while no vertex of either comes over
+    /// a triangle of the other: the vertex–triangle pairs see nothing, and
+    /// the edge–edge pairs keep the second strip's edges above the first's.
+    #[test]
+    fn a_thin_setting_keeps_two_edges_from_passing_through_each_other() {
+        use crate::collision::self_contact::SelfContacts;
+        let w = 0.1;
+        let positions = vec![
+            // Along x, in y = 0, z in [0, w].
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(-1.0, 0.0, w),
+            Vec3::new(1.0, 0.0, w),
+            // Along z, x in [0, w], above.
+            Vec3::new(0.0, 0.06, -1.0),
+            Vec3::new(w, 0.06, -1.0),
+            Vec3::new(0.0, 0.06, 1.0),
+            Vec3::new(w, 0.06, 1.0),
+        ];
+        let indices = vec![0, 2, 1, 1, 2, 3, 4, 6, 5, 5, 6, 7];
+        let model = ClothBuilder::from_triangles(positions, indices)
+            .with_material(ClothMaterial::COTTON)
+            .build()
+            .unwrap();
+        let sc = SelfCollision {
+            thickness: 0.3 * w,
+            friction: 0.3,
+        };
+        sc.validate(&model).unwrap();
+        let start = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        // The second strip's far end comes down so that its edges cross
+        // y = 0 at z = w/2, over the first strip.
+        let dt = 1.0 / 60.0;
+        let drop = 2.0 * 0.06 / (1.0 + 0.5 * w);
+        let v: Vec<Vec3A> = (0..8)
+            .map(|i| Vec3A::new(0.0, if i >= 6 { -drop / dt } else { 0.0 }, 0.0))
+            .collect();
+        let mut contacts = SelfContacts::default();
+        contacts.find(&model, &start, &v, dt, SelfCollisionInput::alone(sc), 0.0);
+        assert_eq!(contacts.face_pair_count(), 0);
+        assert!(contacts.edge_pair_count() > 0);
+        let mut x: Vec<Vec3A> = start.iter().zip(&v).map(|(&x, &v)| x + v * dt).collect();
+        let mut check = IntersectionCheck::default();
+        let through = count_intersections(&model, &x, &mut check);
+        assert!(through > 0, "the step's motion passes through: {through}");
+        for _ in 0..4 {
+            contacts.resolve(&model, &mut x, |i| start[i], 1.0);
+        }
+        assert_eq!(count_intersections(&model, &x, &mut check), 0);
+        // The second strip's long edges are above the first's at z = w/2.
+        let at = |a: usize, b: usize, z: f32| {
+            let t = (z - x[a].z) / (x[b].z - x[a].z);
+            x[a].lerp(x[b], t).y
+        };
+        for (a, b) in [(4, 6), (5, 7)] {
+            let y = at(a, b, 0.5 * w);
+            assert!(y > 0.0, "edge {a}–{b} at {y}");
+        }
+    }
 }

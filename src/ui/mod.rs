@@ -489,7 +489,8 @@ fn self_collision_ui(
                 .custom_formatter(|v, _| format!("{v:.3}")),
         )
         .on_hover_text(
-            "below 0.71 of the shortest edge, vertex–triangle pairs keep the layers apart, at about twice the cost",
+            "below 0.71 of the shortest edge, vertex–triangle and edge–edge pairs keep the layers \
+             apart, at two to three times the cost",
         )
         .changed();
     let moved = ui

@@ -50,8 +50,11 @@ pub(super) struct Faces {
     /// corners of the triangles that share an edge with it; `u32::MAX`
     /// where none).
     across: Vec<[u32; 3]>,
-    /// Each vertex's swept box (m).
-    vertex_boxes: Vec<[Vec3A; 2]>,
+    /// Each vertex's swept box (m), in the frame moving at `frame`, and
+    /// the grid's inverse cell size (the edge–edge search reads them).
+    pub(super) vertex_boxes: Vec<[Vec3A; 2]>,
+    pub(super) frame: Vec3A,
+    pub(super) inv: f32,
     /// Each triangle's swept box grown by the thickness (m), and in cells.
     triangle_boxes: Vec<[Vec3A; 2]>,
     triangle_cells: Vec<CellBox>,
@@ -145,6 +148,7 @@ fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
 }
 
 /// What [`Faces::find`] reads besides the positions and velocities.
+#[derive(Clone, Copy)]
 pub(super) struct FaceSearch<'a> {
     pub(super) model: &'a ClothModel,
     pub(super) linked: &'a Linked,
@@ -175,7 +179,8 @@ impl Faces {
     /// thickness of each other plus what the step can bring them closer
     /// (the vertex's motion and its fastest corner's, a quarter more, and
     /// twice `slack`). None where the thickness does not need them.
-    pub(super) fn find(&mut self, x: &[Vec3A], v: &[Vec3A], s: FaceSearch<'_>) {
+    /// Returns whether it searched (and made the vertices' boxes).
+    pub(super) fn find(&mut self, x: &[Vec3A], v: &[Vec3A], s: FaceSearch<'_>) -> bool {
         self.pairs.clear();
         let FaceSearch {
             model,
@@ -186,7 +191,7 @@ impl Faces {
             slack,
         } = s;
         if !self.needed(model, thickness) {
-            return;
+            return false;
         }
         let topology = model.topology();
         let (triangles, rest, pinned) = (
@@ -196,7 +201,7 @@ impl Faces {
         );
         let n = model.vertex_count().min(x.len()).min(v.len());
         if triangles.is_empty() || n < 4 {
-            return;
+            return false;
         }
         // Swept in the frame of the vertices' mean velocity, as the vertex
         // pairs are.
@@ -210,6 +215,7 @@ impl Faces {
             }));
         // Cells of twice the shortest edge: a triangle covers a few.
         let inv = 0.5 / self.shortest.1;
+        (self.frame, self.inv) = (frame, inv);
         let mut total = 0usize;
         self.triangle_boxes.clear();
         self.triangle_cells.clear();
@@ -325,6 +331,7 @@ impl Faces {
                 }
             });
         }
+        true
     }
 
     /// One Gauss–Seidel pass over the pairs: a vertex over its triangle
@@ -340,7 +347,9 @@ impl Faces {
         progress: f32,
         weight: &impl Fn(usize) -> f32,
     ) -> Pass {
-        resolve_all(self.pairs.iter(), x, start, progress, weight)
+        Pass::over(self.pairs.iter(), |p| {
+            resolve_pair(p, x, start, progress, weight)
+        })
     }
 
     /// [`resolve`](Self::resolve) over the pairs numbered in `listed`.
@@ -353,7 +362,7 @@ impl Faces {
         weight: &impl Fn(usize) -> f32,
     ) -> Pass {
         let pairs = listed.iter().filter_map(|&k| self.pairs.get(k as usize));
-        resolve_all(pairs, x, start, progress, weight)
+        Pass::over(pairs, |p| resolve_pair(p, x, start, progress, weight))
     }
 
     /// Appends to `list` the pairs whose vertex is within its least
@@ -380,24 +389,6 @@ impl Faces {
             }
         }
     }
-}
-
-/// [`Faces::resolve`] over `pairs`.
-fn resolve_all<'p>(
-    pairs: impl Iterator<Item = &'p FacePair>,
-    x: &mut [Vec3A],
-    start: &impl Fn(usize) -> Vec3A,
-    progress: f32,
-    weight: &impl Fn(usize) -> f32,
-) -> Pass {
-    let mut pass = Pass::default();
-    for p in pairs {
-        if let Some(depth) = resolve_pair(p, x, start, progress, weight) {
-            pass.touching += 1;
-            pass.deepest = pass.deepest.max(depth);
-        }
-    }
-    pass
 }
 
 /// One pair of [`Faces::resolve`]: how deep it was, as a share of its
@@ -446,14 +437,13 @@ fn resolve_pair(
 
 /// Moves `vertices` along `normal` so that the point `Σ grad[k]·x[k]`
 /// moves out by `depth`, each taking its share by its weight in that point
-/// and its inverse mass (from `weight`; see
-/// [`inverse_pushes`](crate::collision::inverse_pushes)), then Coulomb
-/// friction on that point's motion since `start` across `normal`, up to
-/// `friction` times `depth`. `None` (nothing moved) if none of them can
-/// move.
+/// and its inverse mass (from `weight`), then Coulomb friction (`friction`)
+/// on that point's motion since `start` across `normal`, up to `friction`
+/// times `depth`: the position-based response of a vertex–triangle or
+/// edge–edge pair. `None` (nothing moved) if none of them can move.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn push(
+pub(super) fn push(
     vertices: [usize; 4],
     grad: [f32; 4],
     normal: Vec3A,

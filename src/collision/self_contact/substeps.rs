@@ -18,8 +18,10 @@ pub const SUBSTEP_SKIN: f32 = 0.25;
 pub(super) struct Active {
     /// Indices of the step's pairs that can touch.
     pairs: Vec<u32>,
-    /// Indices of the step's vertex–triangle pairs that can touch.
+    /// Indices of the step's vertex–triangle and edge–edge pairs that can
+    /// touch.
     faces: Vec<u32>,
+    edges: Vec<u32>,
     /// The cloth's vertices when `pairs` was made (empty: to be made).
     at: Vec<Vec3A>,
     /// How far beyond its least distance a pair is kept.
@@ -89,6 +91,14 @@ impl SelfContacts {
                 .resolve_listed(listed, x, &start, progress, &weight)
                 .touching;
         }
+        if !self.active.edges.is_empty() {
+            let weight = |i| self.weight(model, i);
+            let listed = &self.active.edges;
+            touching += self
+                .edges
+                .resolve_listed(listed, x, &start, progress, &weight)
+                .touching;
+        }
         touching
     }
 
@@ -119,6 +129,8 @@ impl SelfContacts {
         active.at.extend_from_slice(&x[..own]);
         active.faces.clear();
         self.faces.near(&x[..own], active.skin, &mut active.faces);
+        active.edges.clear();
+        self.edges.near(&x[..own], active.skin, &mut active.edges);
         active.pairs.clear();
         for (k, p) in self.pairs.iter().enumerate() {
             let (a, b) = (p.a as usize, p.b as usize);
