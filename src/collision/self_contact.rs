@@ -47,8 +47,10 @@
 //! points are nearer than half the thickness along it (or crossed to the
 //! other side) and not slid apart across it, they are pushed back apart,
 //! each end taking its share by its weight in the closest point and its
-//! inverse mass, with friction, in the same passes and terms as the
-//! vertex–triangle pairs. Half the thickness, not all of it: the
+//! inverse mass, with friction, in the same passes as the vertex–triangle
+//! pairs (after the step of `pd`, `pd-anderson`, `newton` and `exact`, not
+//! in their objective: as its terms, `pd-anderson` diverged). Half the
+//! thickness, not all of it: the
 //! vertex–triangle pairs hold resting layers a thickness apart, and edges
 //! crossing each other there would push in every pass. Two edges a row
 //! and a column apart (two or three of their ends joined by springs) are

@@ -47,8 +47,6 @@ pub(super) struct EdgePair {
     /// second's when the step began (or, for edges touching then, at its
     /// end): the side each keeps.
     pub(super) normal: Vec3A,
-    /// The closest points' parameters along the two edges then.
-    pub(super) along: [f32; 2],
     /// Their least distance.
     pub(super) min: f32,
     friction: f32,
@@ -122,7 +120,7 @@ fn between(x: [Vec3A; 4]) -> (Vec3A, [f32; 2]) {
 /// The weights of the four ends in the difference of the closest points at
 /// parameters `[s, t]`.
 #[inline]
-pub(super) fn weights([s, t]: [f32; 2]) -> [f32; 4] {
+fn weights([s, t]: [f32; 2]) -> [f32; 4] {
     [-(1.0 - s), -s, 1.0 - t, t]
 }
 
@@ -243,7 +241,7 @@ impl Edges {
                         continue;
                     }
                     let now = ends.map(|j| x[j]);
-                    let (d, along) = between(now);
+                    let (d, _) = between(now);
                     let reach = apart
                         + 1.25 * (own_motion + motion(other[0]).max(motion(other[1])))
                         + 2.0 * slack;
@@ -278,7 +276,6 @@ impl Edges {
                     pairs.push(EdgePair {
                         ends: ends.map(|j| j as u32),
                         normal,
-                        along,
                         min,
                         friction,
                         reach,
@@ -445,7 +442,6 @@ mod tests {
             pairs: vec![EdgePair {
                 ends: [0, 1, 2, 3],
                 normal: Vec3A::Y,
-                along: [0.5, 0.5],
                 min: 0.02,
                 friction: 0.0,
                 reach: 1.0,
