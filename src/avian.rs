@@ -236,10 +236,11 @@ fn project_on_avian(
         crate::ecs::project_running_cloths(
             &time,
             cloths.reborrow(),
-            |model, state, start, thickness, dt| {
+            |model, state, from, thickness, dt| {
                 let sweep = Sweep {
                     motion: &gathered.avian_motion,
-                    start,
+                    start: from.start,
+                    share: from.share,
                     edges: false,
                 };
                 project_swept(model, state, &gathered.avian, sweep, thickness, dt)

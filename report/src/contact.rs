@@ -254,6 +254,7 @@ impl Stepper {
         let sweep = Sweep {
             motion,
             start: &backup.positions,
+            share: done.last_substep().unwrap_or(1.0),
             edges: false,
         };
         project_swept(model, state, solids, sweep, 0.0, dt);

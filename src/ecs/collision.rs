@@ -273,10 +273,11 @@ fn project_cloths(
         solids.clear();
         solids.extend(sphere_solids(&spheres.projection));
         let solids = &*solids;
-        project_running_cloths(&time, cloths, |model, state, start, thickness, dt| {
+        project_running_cloths(&time, cloths, |model, state, from, thickness, dt| {
             let sweep = Sweep {
                 motion: &spheres.projection_motion,
-                start,
+                start: from.start,
+                share: from.share,
                 edges: false,
             };
             project_swept(model, state, solids, sweep, thickness, dt)
@@ -284,14 +285,23 @@ fn project_cloths(
     }
 }
 
-/// Runs `project` (model, state, where the vertices were at the step's
-/// start, the cloth's particle radius, `dt`; returns the contacts) on every
+/// Where [`project_running_cloths`] sweeps a cloth's vertices from: its
+/// [`Sweep::start`] and [`Sweep::share`].
+#[derive(Clone, Copy)]
+pub(crate) struct SweepFrom<'a> {
+    pub(crate) start: &'a [Vec3A],
+    pub(crate) share: f32,
+}
+
+/// Runs `project` (model, state, the sweep's start and share of the step,
+/// the cloth's particle radius, `dt`; returns the contacts) on every
 /// running cloth, in parallel, and counts its contacts in the cloth's
-/// stats.
+/// stats. The sweep starts where the vertices were at the step's start, or
+/// covers its method's last substep ([`Sweep::share`]).
 pub(crate) fn project_running_cloths(
     time: &Time,
     mut cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
-    project: impl Fn(&ClothModel, &mut ClothState, &[Vec3A], f32, f32) -> usize + Sync,
+    project: impl Fn(&ClothModel, &mut ClothState, SweepFrom<'_>, f32, f32) -> usize + Sync,
 ) {
     let dt = time.delta_secs();
     if dt <= 0.0 {
@@ -311,11 +321,15 @@ pub(crate) fn project_running_cloths(
         } else {
             &[]
         };
+        let from = SweepFrom {
+            start,
+            share: cloth.last_substep.unwrap_or(1.0),
+        };
         cloth.convergence.before_projection(&cloth.state.positions);
         let contacts = project(
             &cloth.model,
             &mut cloth.state,
-            start,
+            from,
             params.particle_radius,
             dt,
         );
@@ -619,10 +633,11 @@ pub(crate) fn project_cloths_on_shapes(
     cloths: Query<(&mut Cloth, &ClothParams, &mut ClothStats)>,
 ) {
     if !colliders.shapes.is_empty() {
-        project_running_cloths(&time, cloths, |model, state, start, thickness, dt| {
+        project_running_cloths(&time, cloths, |model, state, from, thickness, dt| {
             let sweep = Sweep {
                 motion: &colliders.shape_motion,
-                start,
+                start: from.start,
+                share: from.share,
                 // The edges are pushed inside `stiff`'s substeps, not here:
                 // after the step, a push on a taut edge over a box's edge
                 // fights the springs every step.

@@ -92,6 +92,12 @@ pub struct Cloth {
     /// component last gave the model's masses.
     #[reflect(ignore)]
     pub(crate) density_applied: Option<f32>,
+    /// The share of the last step its method's last substep took, when it
+    /// took substeps (`stiff`): the colliders' projection after the step
+    /// sweeps the vertices over that share only (see
+    /// [`Sweep::share`](crate::collision::Sweep::share)).
+    #[reflect(ignore)]
+    pub(crate) last_substep: Option<f32>,
 }
 
 /// A step's convergence measure, judged after the colliders' projection.

@@ -22,7 +22,7 @@ use crate::ecs::{
     ClothParams, ClothSchedule, ClothStats, ClothStatus, ClothSystems, GuardAction, for_each_cloth,
 };
 use crate::solver::SkinInput;
-use crate::solver::guard::{GuardError, guarded_step};
+use crate::solver::guard::{GuardError, GuardedStep, guarded_step};
 use crate::solver::{Method, StepError, StepInput};
 
 /// A method as the ECS sees it: a [`Method`] settings type that is also a
@@ -376,6 +376,7 @@ fn step_cloths<M: ClothMethod>(
                 .iter()
                 .map(|&p| (p, cloth.state.positions[p as usize])),
         );
+        cloth.last_substep = result.as_ref().ok().and_then(GuardedStep::last_substep);
         match result {
             Ok(done) => {
                 if let Some(sc) = self_collision {

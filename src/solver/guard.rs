@@ -325,6 +325,19 @@ pub struct GuardedStep {
     pub measured: Measured,
 }
 
+impl GuardedStep {
+    /// The share of the step over which the method last moved each vertex
+    /// in a straight line, at its velocity, when that is less than the
+    /// whole step: `stiff`'s last substep (of the guard's last retry
+    /// substep, if it split the step). `None` for a method that takes the
+    /// step whole: the projection after the step then sweeps each vertex
+    /// from where the step began ([`Sweep`](crate::collision::Sweep)).
+    pub fn last_substep(&self) -> Option<f32> {
+        (self.report.substeps > 1)
+            .then(|| 1.0 / (self.report.substeps as f32 * self.substeps.max(1) as f32))
+    }
+}
+
 /// Why [`guarded_step`] gave up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GuardError {

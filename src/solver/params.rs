@@ -207,6 +207,12 @@ pub struct StepReport {
     /// of its step, if it handles self-collision inside its step (`stiff`);
     /// `None` otherwise (the plugin then resolves it after the step).
     pub self_contacts: Option<u32>,
+    /// The substeps the method took the step in, each vertex's velocity
+    /// its motion over the last (`stiff`'s); 1 for the methods that take
+    /// the step whole. The projection after the step sweeps each vertex
+    /// over the last substep only: a vertex the substeps carried round a
+    /// solid did not move in a straight line from the step's start.
+    pub substeps: u32,
 }
 
 /// The relative error above which a step counts as not converged

@@ -140,6 +140,7 @@ impl Method for SymplecticSolver {
             relative_error: None,
             contacts,
             self_contacts: None,
+            substeps: 1,
         })
     }
 }

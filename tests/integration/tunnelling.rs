@@ -167,6 +167,7 @@ fn a_ball_at_30_m_per_s_does_not_pass_through_a_64_square_cloth() {
         ))
         .id();
     run_steps(&mut app, 1);
+    let mut stretched = 0.0_f32;
     for step in 0..6 {
         app.world_mut()
             .get_mut::<Transform>(ball)
@@ -178,6 +179,8 @@ fn a_ball_at_30_m_per_s_does_not_pass_through_a_64_square_cloth() {
         let c = app.world().get::<Cloth>(cloth).unwrap();
         let s = stats(&app, cloth);
         assert!(s.is_running(), "{name}, step {step}: {s:?}");
+        println!("step {step}: stretch {}", s.max_stretch);
+        stretched = stretched.max(s.max_stretch);
         if center.y > -0.1 {
             assert!(
                 ray_meets(c.model(), c.positions(), center, Vec3A::Y),
@@ -190,4 +193,11 @@ fn a_ball_at_30_m_per_s_does_not_pass_through_a_64_square_cloth() {
             .count();
         assert_eq!(inside, 0, "{name}, step {step}: vertices inside the ball");
     }
+    // Carried, not torn: friction acts on the sheet's motion relative to
+    // the ball, and the projection after the step sweeps only `stiff`'s
+    // last substep. (Friction against the sheet's own motion held the
+    // cap still while the ball pushed it, and a corner the substeps
+    // carried round the ball was taken for one that passed through it
+    // and put back where it "entered": 0.91 of stretch.)
+    assert!(stretched < 0.3, "{name}: stretched {stretched}");
 }

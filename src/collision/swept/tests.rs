@@ -246,3 +246,53 @@ fn a_vertex_sliding_over_a_box_edge_is_not_thrown_back_on_top() {
         "put at {x}"
     );
 }
+
+#[test]
+fn a_sweep_over_the_last_substep_leaves_a_vertex_carried_round_a_solid() {
+    // A vertex that a method's substeps carried round a ball, from under
+    // it to beside it, ends outside it: swept in a straight line from
+    // the step's start it passed through the ball and is put back under
+    // it; swept over the last of 16 substeps (at its velocity), it stays.
+    let model = ClothBuilder::from_triangles(
+        vec![
+            Vec3::new(0.0, -0.3, 0.0),
+            Vec3::new(0.5, -0.3, 0.0),
+            Vec3::new(0.0, -0.3, 0.5),
+        ],
+        vec![0, 1, 2],
+    )
+    .build()
+    .unwrap();
+    let ball = Shape::Capsule(Capsule {
+        a: Vec3A::ZERO,
+        b: Vec3A::ZERO,
+        radius: 0.25,
+        friction: 0.0,
+    });
+    let start = model
+        .topology()
+        .rest_positions()
+        .iter()
+        .map(|&p| Vec3A::from(p))
+        .collect::<Vec<_>>();
+    let dt = 1.0 / 60.0;
+    let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    // Now just beside the ball's top, moving up along its side.
+    state.positions[0] = Vec3A::new(0.0, 0.3, 0.0);
+    state.velocities[0] = Vec3A::new(0.0, 2.0, 0.0);
+    let end = state.positions[0];
+    let sweep = |share: f32| Sweep {
+        start: &start,
+        share,
+        ..Sweep::default()
+    };
+    let mut whole = state.clone();
+    project_swept(&model, &mut whole, &[ball], sweep(1.0), 0.0, dt);
+    assert!(
+        whole.positions[0].y < 0.0,
+        "put back at {}",
+        whole.positions[0]
+    );
+    project_swept(&model, &mut state, &[ball], sweep(1.0 / 16.0), 0.0, dt);
+    assert_eq!(state.positions[0], end);
+}

@@ -428,6 +428,7 @@ impl Method for ExactSolver {
             relative_error: Some(relative_error),
             contacts: 0,
             self_contacts: None,
+            substeps: 1,
         })
     }
 }

@@ -302,6 +302,7 @@ impl Method for ImplicitSolver {
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
             self_contacts: None,
+            substeps: 1,
         })
     }
 }

@@ -287,6 +287,7 @@ impl Method for LinearImplicitSolver {
             relative_error: None,
             contacts: 0,
             self_contacts: None,
+            substeps: 1,
         })
     }
 }

@@ -120,6 +120,7 @@ impl Method for PbdSolver {
             relative_error: None,
             contacts: 0,
             self_contacts: self_collision.map(|_| 0),
+            substeps: 1,
         };
         let springs = model.topology().springs();
         let adjacency = model.topology().adjacency();

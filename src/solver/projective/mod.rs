@@ -799,6 +799,7 @@ impl ProjectiveSolver {
             relative_error: Some(convergence.relative_error(model, params.dt)),
             contacts: 0,
             self_contacts: None,
+            substeps: 1,
         })
     }
 }

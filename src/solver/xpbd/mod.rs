@@ -20,11 +20,18 @@
 //!    collider ([`StepInput::spheres`], whose stiffness it does not use: an
 //!    explicit penalty force at the substep bounces the cloth off
 //!    elastically) is moved to its surface, with position-based Coulomb
-//!    friction: of its tangential motion over the substep, up to `μ` times
-//!    the depth is taken back (all of it: static friction);
+//!    friction: of its tangential motion over the substep relative to the
+//!    solid's (a solid that moved this step moves through the substeps),
+//!    up to `μ` times the depth is taken back (all of it: static
+//!    friction), so a moving solid carries the cloth it holds;
 //! 4. `vᵢ ← (xᵢ − pᵢ)/h` (computed as the predicted velocity plus the
 //!    substep's corrections over `h`, which keeps `f32` precision far from
 //!    the origin).
+//!
+//! The projection after the step ([`project_swept`](crate::collision::project_swept))
+//! sweeps each vertex over the last substep only
+//! ([`StepReport::substeps`]): the substeps carried it round the solids on
+//! a path that is no straight line from the step's start.
 //!
 //! After the last substep, a cloth with self-collision has the edges that
 //! went through its own triangles anyway taken back out (see
@@ -326,6 +333,11 @@ impl Method for XpbdSolver {
             }
         }));
         let sweeping = ws.motion.iter().any(|m| *m != Vec3A::ZERO);
+        // Each solid's motion over one substep: friction acts on a vertex's
+        // motion relative to the solid it touches.
+        ws.shift.clear();
+        ws.shift
+            .extend(ws.motion.iter().map(|&m| m / substeps as f32));
         ws.moving.clear();
         ws.moving.extend_from_slice(&ws.solids);
         ws.bounds.clear();
@@ -437,7 +449,7 @@ impl Method for XpbdSolver {
                     v: &mut [Vec3A],
                     prev: &mut [[Vec3A; 2]],
                     (anchors, skin_now): (&[Vec3A], &[Vec3A]),
-                    solids: (&[Shape], &[Bound]),
+                    solids: Solids<'_>,
                     end: bool,
                     begin: bool| {
             let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
@@ -490,7 +502,7 @@ impl Method for XpbdSolver {
             ws.self_contacts
                 .find(model, x, v, params.dt as f32, sc, slack);
         }
-        pass(x, v, prev, (&[], &[]), (&[], &[]), false, true);
+        pass(x, v, prev, (&[], &[]), (&[], &[], &[]), false, true);
         let springs = ColouredSprings::new(
             &ws.links.ends,
             &ws.links.rest,
@@ -557,7 +569,7 @@ impl Method for XpbdSolver {
                     v,
                     prev,
                     (&ws.anchors, &ws.skin_now),
-                    (&ws.moving, &ws.bounds),
+                    (&ws.moving, &ws.bounds, &ws.shift),
                     true,
                     substep < substeps,
                 );
@@ -573,6 +585,7 @@ impl Method for XpbdSolver {
             relative_error: None,
             contacts: contacts_held,
             self_contacts: self_collision.map(|_| self_held),
+            substeps,
         })
     }
 }
@@ -659,13 +672,16 @@ fn bound(shape: &Shape) -> Bound {
     }
 }
 
+/// The solids a substep projects the cloth out of: the shapes where they
+/// are, their [`bound`]s, and each one's motion over the substep.
+type Solids<'a> = (&'a [Shape], &'a [Bound], &'a [Vec3A]);
+
 /// Moves `x` out of every solid it is inside, with position-based Coulomb
-/// friction on its motion since `prev` (the substep's start), and says
-/// whether it was inside one. `solids` are the shapes and their
-/// [`bound`]s.
-fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) -> bool {
+/// friction on its motion since `prev` (the substep's start) relative to
+/// the solid's, and says whether it was inside one.
+fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds, shifts): Solids<'_>) -> bool {
     let mut touched = false;
-    for (shape, bound) in shapes.iter().zip(bounds) {
+    for ((shape, bound), &shift) in shapes.iter().zip(bounds).zip(shifts) {
         if bound.is_some_and(|(centre, r2)| x.distance_squared(centre) > r2) {
             continue;
         }
@@ -676,7 +692,7 @@ fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds): (&[Shape], &[Bound])) -
         *x += depth * normal;
         let mu = shape.friction();
         if mu > 0.0 {
-            let moved = *x - prev;
+            let moved = *x - prev - shift;
             let tangential = moved - moved.dot(normal) * normal;
             let length = tangential.length();
             if length > 0.0 {
@@ -705,6 +721,8 @@ pub struct XpbdWorkspace {
     motion: Vec<Vec3A>,
     /// The solids where they are in the current substep.
     moving: Vec<Shape>,
+    /// Each solid's motion over one substep.
+    shift: Vec<Vec3A>,
     /// Per projected solid, the cloth's edges it may meet this step.
     edges: Vec<Vec<u32>>,
     /// Per solid, its quick test ([`bound`]).

@@ -831,3 +831,64 @@ fn self_collision_keeps_a_crumpling_sheet_from_passing_through_itself() {
     assert_eq!(with, 0, "{without} intersections without self-collision");
     assert!(stretch < 0.1, "max stretch {stretch}");
 }
+
+#[test]
+fn friction_carries_a_cloth_on_a_solid_that_slides_under_it() {
+    // A small cloth resting on a wide box (a tray) that slides along x at
+    // 1 m/s for half a second: with μ = 1 it rides along, without it stays
+    // where it was. Friction acts on its motion relative to the box (on
+    // its own motion, it held the cloth still while the box slid away).
+    let model = ClothBuilder::grid(
+        5,
+        5,
+        Vec3::new(-0.2, 0.0, -0.2),
+        Vec3::new(0.2, 0.0, -0.2),
+        Vec3::new(-0.2, 0.0, 0.2),
+    )
+    .build()
+    .unwrap();
+    let params = StepParams {
+        damping: 1.0,
+        ..stiff(1e4, 1.0 / 60.0)
+    };
+    let ride = |friction: f32| {
+        let dt = params.dt as f32;
+        let speed = Vec3A::new(1.0, 0.0, 0.0);
+        let mut tray = Shape::Cuboid(crate::collision::Cuboid {
+            center: Vec3A::new(0.0, -0.1, 0.0),
+            axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+            half_extents: Vec3A::new(2.0, 0.1, 2.0),
+            friction,
+        });
+        let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+        let mut ws = XpbdWorkspace::default();
+        for _ in 0..30 {
+            tray = tray.translated(speed * dt);
+            let input = StepInput {
+                model: &model,
+                params: &params,
+                spheres: &[],
+                contacts: &[tray],
+                contact_motion: &[speed * dt],
+                skin: None,
+                self_collision: None,
+            };
+            XpbdSolver::STIFF
+                .step_with(input, &mut state, &mut ws)
+                .unwrap();
+        }
+        let mean: Vec3A = state.positions.iter().sum::<Vec3A>() / state.positions.len() as f32;
+        (mean, max_stretch(&model, &state.positions))
+    };
+    let ((carried, stretch), (left, _)) = (ride(1.0), ride(0.0));
+    // Kinetic friction brings it up to the tray's speed in v/(μg): it
+    // lags v²/(2μg) = 5.1 cm behind the tray's 0.5 m.
+    assert!(
+        (carried.x - 0.449).abs() < 0.01,
+        "the cloth on the tray moved {carried}"
+    );
+    assert!(stretch < 0.01, "stretched {stretch}");
+    assert!(left.x.abs() < 0.02, "the frictionless cloth moved {left}");
+    // It stays on the tray, not in it.
+    assert!(carried.y > -1e-3 && left.y > -1e-3, "{carried} {left}");
+}
