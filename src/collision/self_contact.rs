@@ -103,7 +103,10 @@
 //! in the next step. It costs the exact check, a small share of a `stiff`
 //! step with self-collision but several steps of the other methods, so
 //! they leave it (the CHANGELOG has the measurements). Edges through
-//! another cloth are not taken back.
+//! another cloth are taken back the same way after every method's step
+//! (`untangle_between`, in the pass below, where two cloths' boxes meet):
+//! a ball that pressed one sheet through the one under it within a step
+//! left their edges crossed for the rest of the run.
 //!
 //! # Cloth against cloth
 //!
@@ -112,7 +115,8 @@
 //! where they were at the step's start, and takes its share of each push;
 //! after all the steps, [`ClothLayers`] pushes apart in one pass what the
 //! steps could not see (every cloth moved while the others stood still in
-//! its view).
+//! its view), and then takes back the edges of one through the other's
+//! triangles (above).
 //!
 //! [`count_intersections`] is the exact check: how many mesh edges pass
 //! through a triangle that shares no vertex with them;
@@ -132,10 +136,10 @@ mod layers;
 mod objective;
 mod substeps;
 
-pub(crate) use check::untangle;
 pub use check::{
     IntersectionCheck, UNTANGLE_MARGIN, count_crossings, count_intersections, ray_meets,
 };
+pub(crate) use check::{untangle, untangle_between};
 pub use faces::FACES_BELOW;
 pub use layers::ClothLayers;
 pub(crate) use objective::PairTerms;

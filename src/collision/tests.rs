@@ -578,7 +578,8 @@ mod untangle {
 
     use crate::collision::SelfCollision;
     use crate::collision::self_contact::{
-        IntersectionCheck, SelfCollisionInput, count_intersections, untangle,
+        IntersectionCheck, SelfCollisionInput, count_crossings, count_intersections, untangle,
+        untangle_between,
     };
     use crate::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
     use crate::solver::xpbd::{XpbdSolver, XpbdWorkspace};
@@ -683,6 +684,67 @@ mod untangle {
         let again = x.clone();
         assert_eq!(untangle(&model, &mut x, &mut check, sc.thickness), 0);
         assert_eq!(x, again);
+    }
+
+    /// Two cloths, one sheet each, one vertex of the upper poked through
+    /// the lower (as a ball that pressed it through within a step leaves
+    /// it): `untangle_between` takes it back out, moving only vertices
+    /// near the poke, each by less than the thickness.
+    #[test]
+    fn untangle_between_takes_an_edge_through_another_cloth_back_out() {
+        let n = 16u32;
+        let sheet = |y: f32| {
+            let h = 1.0 / (n - 1) as f32;
+            ClothBuilder::grid(
+                n as usize,
+                n as usize,
+                Vec3::new(0.0, y, 0.0),
+                Vec3::new(1.0, y, 0.0),
+                Vec3::new(0.0, y, 1.0),
+            )
+            .with_material(ClothMaterial::COTTON)
+            .build()
+            .map(|m| (m, h))
+            .unwrap()
+        };
+        let ((lower, h), (upper, _)) = (sheet(0.0), sheet(0.05));
+        let sc = SelfCollision::for_model(&lower);
+        // Either cloth first.
+        for swap in [false, true] {
+            let mut a = ClothState::at_rest(&lower, &Affine3A::IDENTITY).positions;
+            let mut b = ClothState::at_rest(&upper, &Affine3A::IDENTITY).positions;
+            let below = 7 * n as usize + 7;
+            b[below] = a[below] + Vec3A::new(h / 3.0, -0.2 * sc.thickness, h / 3.0);
+            let (start_a, start_b) = (a.clone(), b.clone());
+            let mut check = IntersectionCheck::default();
+            assert!(count_crossings((&lower, &a), (&upper, &b), &mut check) > 0);
+            let mut untangle = |a: &mut Vec<Vec3A>, b: &mut Vec<Vec3A>| {
+                if swap {
+                    untangle_between((&upper, b), (&lower, a), &mut check, sc.thickness)
+                } else {
+                    untangle_between((&lower, a), (&upper, b), &mut check, sc.thickness)
+                }
+            };
+            assert!(untangle(&mut a, &mut b) > 0);
+            // Nothing left to do.
+            assert_eq!(untangle(&mut a, &mut b), 0);
+            assert_eq!(count_crossings((&lower, &a), (&upper, &b), &mut check), 0);
+            assert!(
+                b[below].y > a[below].y && b[below].y < sc.thickness,
+                "{swap}: {} over {}",
+                b[below].y,
+                a[below].y
+            );
+            // Small moves near the poke only.
+            for (x, start) in [(&a, &start_a), (&b, &start_b)] {
+                for (p, q) in x.iter().zip(start) {
+                    assert!(p.distance(*q) < sc.thickness, "{swap}: {q} moved to {p}");
+                    if p != q {
+                        assert!(p.distance(a[below]) < 3.0 * h, "{swap}: {q} moved to {p}");
+                    }
+                }
+            }
+        }
     }
 
     /// The same poke stepped with `stiff`: the edges through the sheet are

@@ -6,15 +6,20 @@
 //! ([`OtherVertex`]): inside `stiff`'s substeps, after the step for the
 //! other methods. After every cloth's step, one pass over all of them
 //! ([`ClothLayers`]) pushes apart what the steps could not see: each moved
-//! while the others stood still in its view.
+//! while the others stood still in its view; then, for each two cloths
+//! whose boxes meet, the edges of one already through the other's
+//! triangles are taken back out (`untangle_between`).
 
 use core::ops::Range;
 
+use bevy::math::Vec3A;
 use bevy::prelude::*;
 
 use super::{Cloth, ClothStats};
 use crate::collision::SelfCollision;
-use crate::collision::self_contact::{ClothLayers, OtherVertex, inverse_mass};
+use crate::collision::self_contact::{
+    ClothLayers, IntersectionCheck, OtherVertex, inverse_mass, untangle_between,
+};
 
 /// The vertices of the cloths with a [`SelfCollision`], gathered before the
 /// step, cloth by cloth in entity order.
@@ -84,11 +89,15 @@ pub(crate) struct Added(Vec<Entity>);
 /// pushed apart where they came within their thickness of each other. A
 /// vertex moved counts as one of its cloth's contacts, its velocity changes
 /// by that move over the step, and the guard measures the cloth again.
+/// Then the edges of each two cloths whose boxes meet that are already
+/// through the other's triangles are taken back out (positions only, as
+/// `stiff`'s own untangling does).
 pub(crate) fn collide_cloths(
     time: Res<Time>,
     gathered: Res<ClothLayerVertices>,
     mut layers: Local<ClothLayers>,
     mut added: Local<Added>,
+    mut check: Local<IntersectionCheck>,
     mut cloths: Query<(&mut Cloth, &SelfCollision, &mut ClothStats)>,
 ) {
     let dt = time.delta_secs();
@@ -148,4 +157,42 @@ pub(crate) fn collide_cloths(
             stats.contacts += moved;
         }
     }
+    // Edges already through another cloth (a ball that pressed one sheet
+    // through the one under it within a step) are taken back out, as
+    // `stiff` takes back a cloth's own: the pushes would hold them there.
+    // Only where the two cloths' boxes meet.
+    for (k, &a) in added.0.iter().enumerate() {
+        for &b in &added.0[k + 1..] {
+            let Ok([(mut ca, sa, _), (mut cb, sb, _)]) = cloths.get_many_mut([a, b]) else {
+                continue;
+            };
+            if !boxes_meet(ca.positions(), cb.positions()) {
+                continue;
+            }
+            let (ca, cb) = (&mut *ca, &mut *cb);
+            let thickness = 0.5 * (sa.thickness + sb.thickness);
+            let through = untangle_between(
+                (&ca.model, &mut ca.state.positions),
+                (&cb.model, &mut cb.state.positions),
+                &mut check,
+                thickness,
+            );
+            if through > 0 {
+                ca.measured = None;
+                cb.measured = None;
+            }
+        }
+    }
+}
+
+/// Whether the boxes around two point sets overlap.
+fn boxes_meet(a: &[Vec3A], b: &[Vec3A]) -> bool {
+    let bounds = |x: &[Vec3A]| {
+        x.iter().fold(
+            (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    };
+    let ((lo_a, hi_a), (lo_b, hi_b)) = (bounds(a), bounds(b));
+    lo_a.cmple(hi_b).all() && lo_b.cmple(hi_a).all()
 }

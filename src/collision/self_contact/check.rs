@@ -234,52 +234,128 @@ pub(crate) fn untangle(
     let triangles = model.topology().triangles();
     let weight = |i: usize| super::inverse_mass(model, i);
     for &(u, w, t) in &found {
-        let [a, b, c] = triangles[t as usize].map(|i| i as usize);
-        let Some(n) = (x[b] - x[a]).cross(x[c] - x[a]).try_normalize() else {
-            continue;
-        };
-        let (u, w) = (u as usize, w as usize);
-        let (du, dw) = ((x[u] - x[a]).dot(n), (x[w] - x[a]).dot(n));
-        // An earlier move may have taken this one out already.
-        if du * dw >= 0.0 {
-            continue;
-        }
-        let (end, d, other) = if du.abs() <= dw.abs() {
-            (u, du, dw)
-        } else {
-            (w, dw, du)
-        };
-        let target = UNTANGLE_MARGIN * thickness * other.signum();
-        // Where the end lies over the triangle (barycentric, clamped).
-        let p = x[end] - n * d;
-        let (e0, e1, e2) = (x[b] - x[a], x[c] - x[a], p - x[a]);
-        let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
-        let (d20, d21) = (e2.dot(e0), e2.dot(e1));
-        let det = d00 * d11 - d01 * d01;
-        if det.is_nan() || det <= 0.0 {
-            continue;
-        }
-        let v = ((d11 * d20 - d01 * d21) / det).clamp(0.0, 1.0);
-        let wc = ((d00 * d21 - d01 * d20) / det).clamp(0.0, 1.0 - v);
-        let bary = [1.0 - v - wc, v, wc];
-        let corners = [a, b, c];
-        let share: f32 = weight(end)
-            + corners
-                .iter()
-                .zip(bary)
-                .map(|(&k, s)| s * s * weight(k))
-                .sum::<f32>();
-        if share.is_nan() || share <= 0.0 {
-            continue;
-        }
-        let lambda = (target - d) / share;
-        x[end] += n * (lambda * weight(end));
-        for (&k, s) in corners.iter().zip(bary) {
-            x[k] -= n * (lambda * s * weight(k));
+        let corners = triangles[t as usize].map(|i| i as usize);
+        let ends = [u as usize, w as usize];
+        let move_ = take_back(
+            ends.map(|i| (x[i], weight(i))),
+            corners.map(|i| (x[i], weight(i))),
+            thickness,
+        );
+        if let Some((end, by, shifts)) = move_ {
+            x[ends[end]] += by;
+            for (&k, shift) in corners.iter().zip(shifts) {
+                x[k] += shift;
+            }
         }
     }
     check.found = found;
     count
+}
+
+/// As [`untangle`], between two cloths: the edges of each through a
+/// triangle of the other are taken back out, the edge's end moved back to
+/// its other end's side, [`UNTANGLE_MARGIN`] of `thickness` past the
+/// triangle's plane, and the other cloth's corners taking their share.
+/// Returns the edges found through (before the moves).
+pub(crate) fn untangle_between(
+    (model_a, a): (&ClothModel, &mut [Vec3A]),
+    (model_b, b): (&ClothModel, &mut [Vec3A]),
+    check: &mut IntersectionCheck,
+    thickness: f32,
+) -> usize {
+    let mut first = None;
+    for _ in 0..4 {
+        let found = untangle_through((model_b, &mut *b), (model_a, &mut *a), check, thickness)
+            + untangle_through((model_a, &mut *a), (model_b, &mut *b), check, thickness);
+        first.get_or_insert(found);
+        if found == 0 {
+            break;
+        }
+    }
+    first.unwrap_or(0)
+}
+
+/// The edges of the first cloth through the second's triangles, taken back
+/// out (see [`untangle_between`]).
+fn untangle_through(
+    (edge_model, xe): (&ClothModel, &mut [Vec3A]),
+    (model, x): (&ClothModel, &mut [Vec3A]),
+    check: &mut IntersectionCheck,
+    thickness: f32,
+) -> usize {
+    let mut found = core::mem::take(&mut check.found);
+    found.clear();
+    let count = count_through((edge_model, xe), (model, x), false, check, |u, w, t| {
+        found.push((u, w, t));
+    });
+    let triangles = model.topology().triangles();
+    for &(u, w, t) in &found {
+        let corners = triangles[t as usize].map(|i| i as usize);
+        let ends = [u as usize, w as usize];
+        let move_ = take_back(
+            ends.map(|i| (xe[i], super::inverse_mass(edge_model, i))),
+            corners.map(|i| (x[i], super::inverse_mass(model, i))),
+            thickness,
+        );
+        if let Some((end, by, shifts)) = move_ {
+            xe[ends[end]] += by;
+            for (&k, shift) in corners.iter().zip(shifts) {
+                x[k] += shift;
+            }
+        }
+    }
+    check.found = found;
+    count
+}
+
+/// The move that takes an edge (its ends' positions and inverse masses)
+/// back out of a triangle (its corners'): which end moves, by how much,
+/// and each corner's share, or `None` where there is nothing to do (an
+/// earlier move took it out already, a degenerate triangle, both ends
+/// pinned with the corners).
+fn take_back(
+    ends: [(Vec3A, f32); 2],
+    corners: [(Vec3A, f32); 3],
+    thickness: f32,
+) -> Option<(usize, Vec3A, [Vec3A; 3])> {
+    let [(a, _), (b, _), (c, _)] = corners;
+    let n = (b - a).cross(c - a).try_normalize()?;
+    let (du, dw) = ((ends[0].0 - a).dot(n), (ends[1].0 - a).dot(n));
+    // An earlier move may have taken this one out already.
+    if du * dw >= 0.0 {
+        return None;
+    }
+    let (end, d, other) = if du.abs() <= dw.abs() {
+        (0, du, dw)
+    } else {
+        (1, dw, du)
+    };
+    let (at, weight) = ends[end];
+    let target = UNTANGLE_MARGIN * thickness * other.signum();
+    // Where the end lies over the triangle (barycentric, clamped).
+    let p = at - n * d;
+    let (e0, e1, e2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+    let det = d00 * d11 - d01 * d01;
+    if det.is_nan() || det <= 0.0 {
+        return None;
+    }
+    let v = ((d11 * d20 - d01 * d21) / det).clamp(0.0, 1.0);
+    let wc = ((d00 * d21 - d01 * d20) / det).clamp(0.0, 1.0 - v);
+    let bary = [1.0 - v - wc, v, wc];
+    let share: f32 = weight
+        + corners
+            .iter()
+            .zip(bary)
+            .map(|(&(_, w), s)| s * s * w)
+            .sum::<f32>();
+    if share.is_nan() || share <= 0.0 {
+        return None;
+    }
+    let lambda = (target - d) / share;
+    let shifts = [0, 1, 2].map(|k| -n * (lambda * bary[k] * corners[k].1));
+    Some((end, n * (lambda * weight), shifts))
 }
 
 /// Whether the ray from `from` along `direction` meets one of `model`'s
