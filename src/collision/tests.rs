@@ -414,7 +414,7 @@ mod self_collision {
             }
             let progress = substep as f32 / 64.0;
             let a = every.resolve(&model, &mut x, |i| start[i], progress);
-            let b = listed.resolve_substep(&model, &mut y, |i| start[i], progress);
+            let b = listed.resolve_substep(&model, &mut y, |i| start[i], [0.0, progress]);
             assert_eq!(a, b, "substep {substep}");
             assert_eq!(x, y, "substep {substep}");
             touching += a;

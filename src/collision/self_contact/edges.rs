@@ -6,7 +6,7 @@
 
 use bevy::math::Vec3A;
 
-use super::faces::{FaceSearch, push};
+use super::faces::{FaceSearch, parting, push};
 use super::grid::{CellBox, EMPTY_BOX, bucket, cell_box, fill_table, for_each_cell};
 use super::{Pass, UNTANGLE};
 
@@ -304,17 +304,19 @@ impl Edges {
         weight: &impl Fn(usize) -> f32,
     ) -> Pass {
         Pass::over(self.pairs.iter(), |p| {
-            resolve_pair(p, x, start, progress, weight)
+            resolve_pair(p, x, start, [0.0, progress], weight)
         })
     }
 
-    /// [`resolve`](Self::resolve) over the pairs numbered in `listed`.
+    /// [`resolve`](Self::resolve) over the pairs numbered in `listed`, in
+    /// a pass over the step from `progress[0]` to `progress[1]` (see
+    /// [`parting`]).
     pub(super) fn resolve_listed(
         &self,
         listed: &[u32],
         x: &mut [Vec3A],
         start: &impl Fn(usize) -> Vec3A,
-        progress: f32,
+        progress: [f32; 2],
         weight: &impl Fn(usize) -> f32,
     ) -> Pass {
         let pairs = listed.iter().filter_map(|&k| self.pairs.get(k as usize));
@@ -355,17 +357,18 @@ fn resolve_pair(
     p: &EdgePair,
     x: &mut [Vec3A],
     start: &impl Fn(usize) -> Vec3A,
-    progress: f32,
+    progress: [f32; 2],
     weight: &impl Fn(usize) -> f32,
 ) -> Option<f32> {
     let now = gather(x, p.ends)?;
-    let min = p.min.min(p.overlap + UNTANGLE * p.min * progress);
+    let min = p.min.min(p.overlap + UNTANGLE * p.min * progress[1]);
     let (d, along) = between(now);
     let h = d.dot(p.normal);
     if h >= min || h < -p.reach || (d - h * p.normal).length_squared() > (ASIDE * min).powi(2) {
         return None;
     }
-    let depth = min - h;
+    let came = || between(p.ends.map(|j| start(j as usize))).0.dot(p.normal) - h;
+    let depth = parting(min - h, (p.min, p.overlap), progress, came);
     push(
         p.ends.map(|j| j as usize),
         weights(along),

@@ -47,13 +47,21 @@ impl SelfContacts {
     /// cloths' stand still through the step). A push in the pass that moves
     /// a vertex that far goes on over every pair after it, in order, as
     /// `resolve` does.
+    ///
+    /// The pass covers the step from `progress[0]` to `progress[1]` (0 at
+    /// the step's start, 1 at its end), and `start` has the vertices where
+    /// they were at `progress[0]`: a pass that does not begin with the step
+    /// parts its overlapping vertex–triangle and edge pairs by at most its
+    /// share of [`UNTANGLE`](super::UNTANGLE) (a substep; a PBD iteration
+    /// passes `[0, done]` with the step's start).
     pub fn resolve_substep(
         &mut self,
         model: &ClothModel,
         x: &mut [Vec3A],
         start: impl Fn(usize) -> Vec3A,
-        progress: f32,
+        progress: [f32; 2],
     ) -> u32 {
+        let [_, to] = progress;
         self.refresh_active(x);
         let weight = |i| self.weight(model, i);
         let (active, at) = (&self.active.pairs, &self.active.at);
@@ -66,7 +74,7 @@ impl SelfContacts {
         let mut rest = None;
         for &k in active {
             let p = &self.pairs[k as usize];
-            if self.resolve_pair(p, x, &start, progress, &weight).is_some() {
+            if self.resolve_pair(p, x, &start, to, &weight).is_some() {
                 touching += 1;
                 if far(x, p.a as usize) || far(x, p.b as usize) {
                     rest = Some(k as usize + 1);
@@ -76,7 +84,7 @@ impl SelfContacts {
         }
         if let Some(from) = rest {
             touching += self
-                .resolve_weighted(self.pairs[from..].iter(), x, &start, progress, weight)
+                .resolve_weighted(self.pairs[from..].iter(), x, &start, to, weight)
                 .touching;
             // A vertex moved beyond the list's reach.
             self.active.at.clear();

@@ -309,7 +309,7 @@ impl PbdWorkspace {
             model,
             &mut x[..n],
             |i| start[i],
-            done as f32 / iterations as f32,
+            [0.0, done as f32 / iterations as f32],
         );
         for ((v, &x), &b) in v[..n].iter_mut().zip(&x[..n]).zip(&self.before) {
             *v += (x - b) * inv_dt;

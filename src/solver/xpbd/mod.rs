@@ -535,7 +535,7 @@ impl Method for XpbdSolver {
             }
             sweep(params.simd, springs, x);
             if self_collision.is_some() {
-                let progress = substep as f32 / substeps as f32;
+                let progress = [substep - 1, substep].map(|k| k as f32 / substeps as f32);
                 self_held = ws
                     .self_contacts
                     .resolve_substep(model, x, |i| prev[i][0], progress);
