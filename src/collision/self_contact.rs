@@ -122,7 +122,9 @@
 //! after all the steps, [`ClothLayers`] pushes apart in one pass what the
 //! steps could not see (every cloth moved while the others stood still in
 //! its view), and then takes back the edges of one through the other's
-//! triangles (above).
+//! triangles (above) where they can have gone through: the first step two
+//! cloths meet, after fast relative motion, and while edges are found
+//! (the plugin's `collide_cloths`).
 //!
 //! [`count_intersections`] is the exact check: how many mesh edges pass
 //! through a triangle that shares no vertex with them;
