@@ -218,6 +218,15 @@ fn shortest_edge(model: &ClothModel) -> f32 {
         .fold(f32::INFINITY, f32::min)
 }
 
+/// Whether vertex pairs at `thickness` can miss a vertex passing through
+/// one of `model`'s triangles: the thickness is below [`FACES_BELOW`] of its
+/// shortest rest edge (a point of a triangle can be that far from its
+/// nearest corner), where a cloth alone needs vertex–triangle pairs.
+pub(crate) fn thin_for(model: &ClothModel, thickness: f32) -> bool {
+    let shortest = shortest_edge(model);
+    shortest.is_finite() && thickness < FACES_BELOW * shortest
+}
+
 /// Why a [`SelfCollision`] is refused.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error, Reflect)]
 pub enum SelfCollisionError {

@@ -18,7 +18,11 @@
 //! cloths' mean motion, by more than half their mean thickness (the pushes
 //! keep slower motion from passing through: a vertex passing through a
 //! triangle comes within the thickness of one of its corners), and while
-//! its last check found edges through.
+//! its last check found edges through. Two cloths whose mean thickness is
+//! thin for either (below `FACES_BELOW` of its shortest rest edge, where a
+//! point of a triangle can be further than that from its corners) are
+//! checked every step: their vertex pairs alone can let a slow vertex
+//! through.
 
 use core::ops::Range;
 
@@ -28,7 +32,7 @@ use bevy::prelude::*;
 use super::{Cloth, ClothStats};
 use crate::collision::SelfCollision;
 use crate::collision::self_contact::{
-    ClothLayers, IntersectionCheck, OtherVertex, inverse_mass, untangle_between,
+    ClothLayers, IntersectionCheck, OtherVertex, inverse_mass, thin_for, untangle_between,
 };
 
 /// The vertices of the cloths with a [`SelfCollision`], gathered before the
@@ -221,12 +225,15 @@ pub(crate) fn collide_cloths(
             }
             let (ca, cb) = (&mut *ca, &mut *cb);
             let thickness = 0.5 * (sa.thickness + sb.thickness);
-            let moved = moved_apart(
-                [&ca.last_good.positions, &ca.state.positions],
-                [&cb.last_good.positions, &cb.state.positions],
-                0.5 * thickness,
-            );
-            if memory.was_clear((a, b)) && !moved {
+            let thin = thin_for(&ca.model, thickness) || thin_for(&cb.model, thickness);
+            let quiet = || {
+                !moved_apart(
+                    [&ca.last_good.positions, &ca.state.positions],
+                    [&cb.last_good.positions, &cb.state.positions],
+                    0.5 * thickness,
+                )
+            };
+            if !thin && memory.was_clear((a, b)) && quiet() {
                 memory.now.push(((a, b), false));
                 continue;
             }

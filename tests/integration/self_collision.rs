@@ -333,6 +333,84 @@ fn sheets_spawned_through_each_other_are_taken_apart() {
     }
 }
 
+/// A thin setting (0.3 of the edges) between two cloths: the upper sheet's
+/// rest shape has a vertex poked 1.3 thicknesses under it, a third of an
+/// edge aside of the lower sheet's vertices (further from them than the
+/// thickness), and it sinks onto the lower one at 0.3 m/s without gravity,
+/// slower than the take-back's motion gate (half the thickness a step
+/// relative to the two). The vertex pairs cannot see the poke pass through
+/// a triangle; the take-back checks such cloths every step and keeps it
+/// out (without that, it stayed through).
+#[test]
+fn a_thin_setting_keeps_a_slow_poke_out_of_another_cloth() {
+    use bevy::math::Vec3A;
+    let mut app = app();
+    app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0));
+    let still = ClothParams::default().with_gravity(Vec3::ZERO);
+    let lower = flat_sheet(&mut app, (0.6, 0.0), AnyMethod::default(), true);
+    let grid = app.world().get::<Cloth>(lower).unwrap().model().clone();
+    let mut sc = SelfCollision::for_model(&grid);
+    sc.thickness *= 0.3 / 0.9;
+    let h = 1.0 / 15.0;
+    let mut positions = grid.topology().rest_positions().to_vec();
+    let middle = 8 * 16 + 8;
+    positions[middle] += Vec3::new(h / 3.0, -1.3 * sc.thickness, h / 3.0);
+    let indices = grid
+        .topology()
+        .triangles()
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .with_material(ClothMaterial::COTTON)
+        .build()
+        .unwrap();
+    let upper = app
+        .world_mut()
+        .spawn((
+            Cloth::new(model),
+            ClothMaterial::COTTON,
+            sc,
+            Transform::from_xyz(0.0, 0.6 + 1.3 * sc.thickness + 0.004, 0.0),
+        ))
+        .id();
+    AnyMethod::default().insert(&mut app.world_mut().commands().entity(upper));
+    app.world_mut().entity_mut(lower).insert((sc, still));
+    app.world_mut().entity_mut(upper).insert(still);
+    run_steps(&mut app, 1);
+    for v in app
+        .world_mut()
+        .get_mut::<Cloth>(upper)
+        .unwrap()
+        .state_mut()
+        .velocities
+        .iter_mut()
+    {
+        *v = Vec3A::new(0.0, -0.3, 0.0);
+    }
+    let mut check = IntersectionCheck::default();
+    let mut worst = 0;
+    for _ in 0..30 {
+        run_steps(&mut app, 1);
+        let world = app.world();
+        let (a, b) = (
+            world.get::<Cloth>(lower).unwrap(),
+            world.get::<Cloth>(upper).unwrap(),
+        );
+        worst = worst.max(count_crossings(
+            (a.model(), &a.state().positions),
+            (b.model(), &b.state().positions),
+            &mut check,
+        ));
+    }
+    for e in [lower, upper] {
+        let s = stats(&app, e);
+        assert!(s.is_running(), "{s:?}");
+    }
+    assert_eq!(worst, 0, "edges through at worst");
+}
+
 /// The drape scene's thrown ball (10 cm at 30 m/s through the two 32²
 /// sheets' skirt, `stiff`): it presses one sheet through the other within
 /// a step, and the edges crossed are taken back out in the next steps
