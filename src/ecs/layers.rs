@@ -10,10 +10,10 @@
 //! whose boxes meet, the edges of one already through the other's
 //! triangles are taken back out (`untangle_between`).
 //!
-//! That take-back costs two exact checks between the cloths (2.2 ms a
-//! step for the drape scene's two 32² sheets, eleven times a Chebyshev
-//! step of one), so it runs only when edges can have gone through: the
-//! first step two cloths are seen together (they may start crossed),
+//! That take-back costs two exact checks between the cloths, many times
+//! a cloth's step (the CHANGELOG has the numbers), so it runs only when
+//! edges can have gone through: the first step two cloths are seen
+//! together (they may start crossed),
 //! after a step in which a vertex of either moved, relative to the two
 //! cloths' mean motion, by more than half their mean thickness (the pushes
 //! keep slower motion from passing through: a vertex passing through a

@@ -269,6 +269,55 @@ fn sheets_falling_on_each_other_stay_apart_with_every_method() {
     assert!(!ran.contains(&"symplectic") && !ran.contains(&"linear-direct"));
 }
 
+/// The edges of either of two cloths through the other's triangles.
+fn crossings(app: &App, [a, b]: [Entity; 2], check: &mut IntersectionCheck) -> usize {
+    let world = app.world();
+    let (a, b) = (
+        world.get::<Cloth>(a).unwrap(),
+        world.get::<Cloth>(b).unwrap(),
+    );
+    count_crossings(
+        (a.model(), &a.state().positions),
+        (b.model(), &b.state().positions),
+        check,
+    )
+}
+
+/// A sheet like `grid` whose rest shape has its middle vertex moved by
+/// `poke`, of cotton with `sc`, at `height`, stepped by the default method.
+fn poked_sheet(
+    app: &mut App,
+    grid: &ClothModel,
+    sc: SelfCollision,
+    poke: Vec3,
+    height: f32,
+) -> Entity {
+    let mut positions = grid.topology().rest_positions().to_vec();
+    positions[8 * 16 + 8] += poke;
+    let indices = grid
+        .topology()
+        .triangles()
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .with_material(ClothMaterial::COTTON)
+        .build()
+        .unwrap();
+    let e = app
+        .world_mut()
+        .spawn((
+            Cloth::new(model),
+            ClothMaterial::COTTON,
+            sc,
+            Transform::from_xyz(0.0, height, 0.0),
+        ))
+        .id();
+    AnyMethod::default().insert(&mut app.world_mut().commands().entity(e));
+    e
+}
+
 /// Two sheets spawned with one already poked through the other, at rest
 /// in that shape (the upper sheet's rest shape has its middle vertex a
 /// third of the thickness under the lower sheet, a third of an edge aside:
@@ -285,47 +334,17 @@ fn sheets_spawned_through_each_other_are_taken_apart() {
     let grid = app.world().get::<Cloth>(lower).unwrap().model().clone();
     let sc = SelfCollision::for_model(&grid);
     let (h, above) = (1.0 / 15.0, 0.7 * sc.thickness);
-    let mut positions = grid.topology().rest_positions().to_vec();
-    let middle = 8 * 16 + 8;
-    positions[middle] += Vec3::new(h / 3.0, -above - sc.thickness / 3.0, h / 3.0);
-    let indices = grid
-        .topology()
-        .triangles()
-        .iter()
-        .flatten()
-        .copied()
-        .collect();
-    let model = ClothBuilder::from_triangles(positions, indices)
-        .with_material(ClothMaterial::COTTON)
-        .build()
-        .unwrap();
-    let upper = app
-        .world_mut()
-        .spawn((
-            Cloth::new(model),
-            ClothMaterial::COTTON,
-            sc,
-            Transform::from_xyz(0.0, 0.6 + above, 0.0),
-        ))
-        .id();
-    AnyMethod::default().insert(&mut app.world_mut().commands().entity(upper));
+    let poke = Vec3::new(h / 3.0, -above - sc.thickness / 3.0, h / 3.0);
+    let upper = poked_sheet(&mut app, &grid, sc, poke, 0.6 + above);
     let mut check = IntersectionCheck::default();
-    let mut crossings = |app: &App| {
-        let world = app.world();
-        let (a, b) = (
-            world.get::<Cloth>(lower).unwrap(),
-            world.get::<Cloth>(upper).unwrap(),
-        );
-        count_crossings(
-            (a.model(), &a.state().positions),
-            (b.model(), &b.state().positions),
-            &mut check,
-        )
-    };
     // (Without the first step's check, the poke is through after it.)
     for step in 0..60 {
         run_steps(&mut app, 1);
-        assert_eq!(crossings(&app), 0, "step {step}");
+        assert_eq!(
+            crossings(&app, [lower, upper], &mut check),
+            0,
+            "step {step}"
+        );
     }
     for e in [lower, upper] {
         let s = stats(&app, e);
@@ -352,30 +371,8 @@ fn a_thin_setting_keeps_a_slow_poke_out_of_another_cloth() {
     let mut sc = SelfCollision::for_model(&grid);
     sc.thickness *= 0.3 / 0.9;
     let h = 1.0 / 15.0;
-    let mut positions = grid.topology().rest_positions().to_vec();
-    let middle = 8 * 16 + 8;
-    positions[middle] += Vec3::new(h / 3.0, -1.3 * sc.thickness, h / 3.0);
-    let indices = grid
-        .topology()
-        .triangles()
-        .iter()
-        .flatten()
-        .copied()
-        .collect();
-    let model = ClothBuilder::from_triangles(positions, indices)
-        .with_material(ClothMaterial::COTTON)
-        .build()
-        .unwrap();
-    let upper = app
-        .world_mut()
-        .spawn((
-            Cloth::new(model),
-            ClothMaterial::COTTON,
-            sc,
-            Transform::from_xyz(0.0, 0.6 + 1.3 * sc.thickness + 0.004, 0.0),
-        ))
-        .id();
-    AnyMethod::default().insert(&mut app.world_mut().commands().entity(upper));
+    let poke = Vec3::new(h / 3.0, -1.3 * sc.thickness, h / 3.0);
+    let upper = poked_sheet(&mut app, &grid, sc, poke, 0.6 + 1.3 * sc.thickness + 0.004);
     app.world_mut().entity_mut(lower).insert((sc, still));
     app.world_mut().entity_mut(upper).insert(still);
     run_steps(&mut app, 1);
@@ -393,16 +390,7 @@ fn a_thin_setting_keeps_a_slow_poke_out_of_another_cloth() {
     let mut worst = 0;
     for _ in 0..30 {
         run_steps(&mut app, 1);
-        let world = app.world();
-        let (a, b) = (
-            world.get::<Cloth>(lower).unwrap(),
-            world.get::<Cloth>(upper).unwrap(),
-        );
-        worst = worst.max(count_crossings(
-            (a.model(), &a.state().positions),
-            (b.model(), &b.state().positions),
-            &mut check,
-        ));
+        worst = worst.max(crossings(&app, [lower, upper], &mut check));
     }
     for e in [lower, upper] {
         let s = stats(&app, e);
