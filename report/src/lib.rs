@@ -7,6 +7,10 @@
 //! - [`scenarios`] and [`stability`]: stiff and extreme cases run under the
 //!   divergence guard and classified against the exact method, and the
 //!   stability map (`docs/report/stability.md`).
+//! - [`contact`], [`two_sheets`] and [`contact_map`]: the contact cases
+//!   (a sheet folded onto itself, a ball thrown through a sheet, two
+//!   sheets on each other through the plugin) and the map's section of
+//!   them.
 //! - [`perf`]: the performance page (`docs/perf.md`): every method from 21²
 //!   to 256², many cloths, the sparse CG step against its parts, the
 //!   machine's limits.
@@ -28,10 +32,12 @@
 pub mod accuracy;
 pub mod chart;
 pub mod contact;
+pub mod contact_map;
 pub mod long_run;
 pub mod perf;
 pub mod scenarios;
 pub mod stability;
+pub mod two_sheets;
 
 use bevy_cloth::methods::AnyMethod;
 use bevy_cloth::solver::linear::SpringJacobian;

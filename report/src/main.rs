@@ -3,7 +3,7 @@
 //! ```text
 //! cargo run --release -p bevy_cloth_report [-- --out docs/report] [--tiny]
 //! cargo run --release -p bevy_cloth_report -- --stability [--out docs/report] [--tiny]
-//! cargo run --release -p bevy_cloth_report -- --contact [--out docs/report] [--tiny]
+//! cargo run --release -p bevy_cloth_report -- --contact [--out docs/report] [--tiny] [--only NAME]
 //! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
 //! ```
 //!
@@ -13,7 +13,8 @@
 //! method × stiffness × time step, resolutions and extreme cases, classified
 //! against the exact method. `--contact`: the stability map's contact
 //! extreme cases alone, rewritten in place in an existing `stability.md`
-//! (they take minutes where the whole map takes an hour). `--perf`: the
+//! (they take minutes where the whole map takes an hour; with `--only`,
+//! just the rows whose name contains NAME). `--perf`: the
 //! performance page (`perf.md`, `perf-scaling.svg`).
 
 use std::process::ExitCode;
@@ -24,7 +25,7 @@ use bevy_cloth_report::perf::{self, PerfConfig};
 use bevy_cloth_report::stability::{self, StabilityConfig};
 
 const USAGE: &str = "usage: bevy_cloth_report [--stability | --contact | --perf] [--out DIR] [--tiny] \
-                     [--sizes 21,51] [--only NAME] [--seconds S]";
+                     [--sizes 21,51] [--only NAME] [--seconds S] (--only: --perf or --contact)";
 
 #[derive(PartialEq)]
 enum Mode {
@@ -100,10 +101,11 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
             _ => return Err(arg.unexpected().into()),
         }
     }
-    if o.mode != Mode::Perf && (o.sizes.is_some() || o.only.is_some() || o.seconds.is_some()) {
-        return Err(Stop::Bad(
-            "--sizes, --only and --seconds go with --perf".into(),
-        ));
+    if o.mode != Mode::Perf && (o.sizes.is_some() || o.seconds.is_some()) {
+        return Err(Stop::Bad("--sizes and --seconds go with --perf".into()));
+    }
+    if o.only.is_some() && !matches!(o.mode, Mode::Perf | Mode::Contact) {
+        return Err(Stop::Bad("--only goes with --perf or --contact".into()));
     }
     Ok(o)
 }
@@ -146,7 +148,7 @@ fn main() -> ExitCode {
             } else {
                 StabilityConfig::full(&out)
             };
-            stability::rerun_contact(&config)
+            stability::rerun_contact(&config, o.only.as_deref())
                 .map(|_| format!("rewrote the contact cases in {out}/stability.md"))
         }
         Mode::Perf => {

@@ -17,8 +17,9 @@ use plotters::prelude::*;
 
 use rayon::prelude::*;
 
-use crate::contact;
 pub use crate::contact::ContactSizes;
+use crate::contact_map::contact_section;
+pub use crate::contact_map::rerun_contact;
 use crate::long_run::{self as long, Cell, Judged, Length, Scene, draped_start};
 use crate::scenarios::{
     Outcome, Scenario, Verdict, explicit_limit, map_methods, measured_explicit_limit, sweep,
@@ -365,111 +366,9 @@ fn summary(md: &mut String, labels: &[String], scenes: &[(Scene, Vec<Vec<Cell>>)
     writeln!(md).ok();
 }
 
-/// The heading of the map's contact section.
-const CONTACT_HEADING: &str = "\n## Contact extreme cases (every method)\n";
-
-/// The heading of the section after it.
-const LIMIT_HEADING: &str = "\n## Symplectic Euler's step limit";
-
-/// Runs the contact cases of `config` alone and writes them over the
-/// contact section of the `stability.md` already in its folder (from the
-/// section's heading to the next one; before the explicit limit's section
-/// on a page written without one). Returns the new page.
-pub fn rerun_contact(config: &StabilityConfig) -> std::io::Result<String> {
-    let path = config.out_dir.join("stability.md");
-    let page = std::fs::read_to_string(&path)?;
-    let missing = || std::io::Error::other(format!("{} has no contact section", path.display()));
-    let sizes = config.contact.ok_or_else(missing)?;
-    // The section, or where it goes on a page written before it existed:
-    // before the explicit limit's.
-    let (start, end) = match page.find(CONTACT_HEADING) {
-        Some(start) => {
-            let after = start + CONTACT_HEADING.len();
-            let end = page[after..]
-                .find("\n## ")
-                .map_or(page.len(), |k| after + k);
-            (start, end)
-        }
-        None => {
-            let at = page.find(LIMIT_HEADING).ok_or_else(missing)?;
-            (at, at)
-        }
-    };
-    let mut section = String::new();
-    let bar = if config.progress {
-        ProgressBar::new(sizes.cases().len() as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    contact_section(&mut section, &map_methods(), &labels(), sizes, &bar);
-    bar.finish_and_clear();
-    let page = format!("{}{}\n{}", &page[..start], section.trim_end(), &page[end..]);
-    std::fs::write(&path, &page)?;
-    Ok(page)
-}
-
 /// The map's column labels.
-fn labels() -> Vec<String> {
+pub(crate) fn labels() -> Vec<String> {
     map_methods().iter().map(crate::variant).collect()
-}
-
-/// The contact cases' table: every method on every case (in parallel).
-fn contact_section(
-    md: &mut String,
-    methods: &[AnyMethod],
-    labels: &[String],
-    sizes: ContactSizes,
-    bar: &ProgressBar,
-) {
-    md.push_str(CONTACT_HEADING);
-    md.push('\n');
-    writeln!(
-        md,
-        "Cotton at 60 Hz, stepped as the plugin steps it: self-collision (thickness 0.9 of \
-         the shortest edge, friction 0.3) in `stiff`'s substeps, after each of PBD's \
-         iterations, as penalty terms of the objective of `pd`, `pd-anderson`, `newton` and \
-         `exact` (and after their step), and after the other methods' steps; the colliders \
-         swept after every step, and moved through `stiff`'s substeps. The exact method's \
-         contacts and pairs are penalties, not the position-based ones, so there is no reference: \
-         a cell is judged by what a player would see. **Folded**: a {0}² sheet of 1 m folded \
-         in four (layers 1.3 thicknesses apart) dropped 5 cm onto the ground, {1} s: the exact \
-         check's count of mesh edges through one of the sheet's own triangles, the most after \
-         any step; the **thin** fold is the same at 0.3 of the edges thick (layers as far \
-         apart as the default's), where vertex pairs alone let layers through and \
-         vertex–triangle and edge–edge pairs keep them apart, the first also in the objective \
-         of `pd`, `pd-anderson`, `newton` and `exact`; the **long** fold is the same at {4}² for {5} s (issue N's \
-         target). \
-         **Ball**: a free, level {2}² sheet of 2 m, a ball thrown up through it at \
-         30 m/s (half a metre a step) from 0.4 m below it for eight steps: `held` if a ray from the ball's centre \
-         along its motion met the sheet after every step and no vertex was left inside the \
-         ball. The ball is kinematic (it cannot be slowed), so the sheet must be carried at \
-         30 m/s: what strains it is how fast a method's springs pass the pull on (an edge per \
-         sweep for the position-based ones). `str` is the largest stretch at any step; `✓` \
-         marks 0 through or held with at most {3:.0} % stretch (cotton stretched further has \
-         torn); `caught` is the guard's stop.\n",
-        sizes.folded,
-        sizes.seconds,
-        sizes.ball,
-        100.0 * contact::TORN,
-        sizes.long.0,
-        sizes.long.1,
-    )
-    .ok();
-    write!(md, "| case |").ok();
-    for l in labels {
-        write!(md, " {l} |").ok();
-    }
-    writeln!(md, "\n|---|{}", "---|".repeat(labels.len())).ok();
-    for case in sizes.cases() {
-        bar.set_message(case.name.clone());
-        let runs: Vec<_> = methods.par_iter().map(|m| contact::run(&case, m)).collect();
-        write!(md, "| {} |", case.name).ok();
-        for r in &runs {
-            write!(md, " {} |", r.cell(case.thrown.is_some())).ok();
-        }
-        writeln!(md).ok();
-        bar.inc(1);
-    }
 }
 
 /// A time step as the map prints it: `1/60` for a game's 60 Hz, else the
@@ -493,7 +392,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
     let total = long_cells
         + config.resolutions.len()
         + config.large.map_or(0, |n| Scenario::extreme_cases(n).len())
-        + config.contact.map_or(0, |c| c.cases().len());
+        + config.contact.map_or(0, |c| c.cases().len() + 1);
     let bar = if config.progress {
         ProgressBar::new(total as u64)
     } else {
@@ -629,7 +528,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
 
     // 3b. The contact cases, judged without a reference.
     if let Some(sizes) = config.contact {
-        contact_section(&mut md, &methods, &labels, sizes, &bar);
+        contact_section(&mut md, &methods, &labels, sizes, &bar, |_| None);
     }
 
     // 4. The explicit limit.
@@ -847,7 +746,7 @@ mod tests {
         assert!(md.contains("| 10² folded in 4, on the ground | "), "{md}");
         // The contact cases alone, written over their section: the same
         // page (every run is deterministic).
-        let again = rerun_contact(&StabilityConfig::tiny(&dir)).unwrap();
+        let again = rerun_contact(&StabilityConfig::tiny(&dir), None).unwrap();
         assert_eq!(
             again,
             std::fs::read_to_string(dir.join("stability.md")).unwrap()
@@ -860,6 +759,18 @@ mod tests {
         };
         assert_eq!(strip(&again), strip(&md));
         assert!(!md.contains("FAILED"), "{md}");
+        // The two sheets' row (through the plugin), and `--only`: the row
+        // named run again (to the same cells), the others kept as the page
+        // has them, even when they differ from a run.
+        let two = "| two 8² sheets on each other over a ball, 0.1 s | ";
+        assert!(md.contains(two), "{md}");
+        let folded = "| 10² folded in 4, on the ground |";
+        let start = again.find(folded).unwrap();
+        let end = start + again[start..].find('\n').unwrap();
+        let edited = format!("{}{folded} kept |{}", &again[..start], &again[end..]);
+        std::fs::write(dir.join("stability.md"), &edited).unwrap();
+        let only = rerun_contact(&StabilityConfig::tiny(&dir), Some("two ")).unwrap();
+        assert_eq!(only, edited);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -205,17 +205,10 @@ pub(crate) fn inverse_mass(model: &ClothModel, i: usize) -> f32 {
     }
 }
 
-/// The shortest triangle edge of `model` at rest (`∞` without triangles).
+/// The shortest triangle edge of `model` at rest (`∞` without triangles;
+/// the topology keeps it).
 fn shortest_edge(model: &ClothModel) -> f32 {
-    let rest = model.topology().rest_positions();
-    model
-        .topology()
-        .triangles()
-        .iter()
-        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
-        .map(|(a, b)| rest[a as usize].distance(rest[b as usize]))
-        .filter(|&l| l > 0.0)
-        .fold(f32::INFINITY, f32::min)
+    model.topology().shortest_edge()
 }
 
 /// Whether vertex pairs at `thickness` can miss a vertex passing through

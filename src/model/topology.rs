@@ -229,6 +229,8 @@ pub struct ClothTopology {
     sheet: [f32; 3],
     /// Per spring kind, the mean rest length (0 for a kind it lacks).
     mean_rest: [f32; 3],
+    /// The shortest triangle edge at rest (`∞` without triangles).
+    shortest_edge: f32,
     /// The springs as offset families, when they form a stencil (a grid
     /// numbered row by row): what the implicit iteration's
     /// structure-of-arrays kernels run on.
@@ -314,6 +316,12 @@ impl ClothTopology {
                 0.0
             }
         });
+        let shortest_edge = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .map(|(a, b)| rest_positions[a as usize].distance(rest_positions[b as usize]))
+            .filter(|&l| l > 0.0)
+            .fold(f32::INFINITY, f32::min);
         Ok(Self {
             rest_positions,
             triangles,
@@ -322,6 +330,7 @@ impl ClothTopology {
             kind_counts,
             sheet,
             mean_rest,
+            shortest_edge,
             stencil,
         })
     }
@@ -376,6 +385,19 @@ impl ClothTopology {
     #[inline]
     pub fn mean_rest_lengths(&self) -> [f32; 3] {
         self.mean_rest
+    }
+
+    /// The shortest triangle edge at rest, zero-length edges left out (`∞`
+    /// for a cloth without triangles): what bounds a
+    /// [`SelfCollision`](crate::SelfCollision)'s thickness.
+    #[inline]
+    pub fn shortest_edge(&self) -> f32 {
+        // (A default topology has no triangles and a zero here.)
+        if self.triangles.is_empty() {
+            f32::INFINITY
+        } else {
+            self.shortest_edge
+        }
     }
 
     /// How many springs of each kind, in [`SpringKind::ALL`] order.

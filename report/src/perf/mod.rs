@@ -35,7 +35,7 @@ mod sweep;
 pub use character::{CapeRow, cape_rows};
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
-pub use self_collision::{SelfCollisionRow, self_collision_rows};
+pub use self_collision::{SelfCollisionRow, TwoSheetsRow, self_collision_rows, two_sheets_rows};
 pub use sweep::{
     Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, SphereRow, cg_parts, frame_costs,
     many_cloths, scale_model, simd_levels, sphere_steps, sweep, sweep_methods, warm_state,
@@ -74,6 +74,9 @@ pub struct PerfConfig {
     /// Sides of the folded sheet whose step is timed with and without
     /// self-collision.
     pub self_collision_sizes: Vec<usize>,
+    /// Sides of the two sheets draped on each other whose frame is timed
+    /// with and without their self-collision.
+    pub two_sheet_sizes: Vec<usize>,
     /// Only the sweep's methods whose name starts with this (and nothing
     /// else: no page is written), for profiling one case.
     pub only: Option<String>,
@@ -97,6 +100,7 @@ impl PerfConfig {
             cape_sizes: vec![20, 50],
             cape_steps: 600,
             self_collision_sizes: vec![64, 101, 201],
+            two_sheet_sizes: vec![32, 64],
             only: None,
         }
     }
@@ -116,6 +120,7 @@ impl PerfConfig {
             cape_sizes: vec![4],
             cape_steps: 20,
             self_collision_sizes: vec![8],
+            two_sheet_sizes: vec![6],
             silk_table: None,
             only: None,
         }

@@ -1,17 +1,23 @@
 //! Self-collision's share of the step (issue N): one step of a cotton sheet
 //! folded in four and landed on the ground ([`contact::folded`]), with and
-//! without its self-collision, one thread.
+//! without its self-collision, one thread; and a frame of the plugin's app
+//! with two sheets draped on each other ([`TwoSheets`]), with and without
+//! theirs.
 
 use std::time::Instant;
 
 use bevy_cloth::AnyMethod;
 use bevy_cloth::XpbdSolver;
-use bevy_cloth::collision::self_contact::{IntersectionCheck, count_intersections};
+use bevy_cloth::collision::self_contact::{
+    IntersectionCheck, count_crossings, count_intersections,
+};
 use bevy_cloth::model::ClothState;
 use bevy_cloth::solver::guard::GuardError;
+use bevy_cloth::{Cloth, ClothStats};
 
 use super::{PerfConfig, Timing, time_samples};
 use crate::contact::{self, ContactCase, Stepper};
+use crate::two_sheets::TwoSheets;
 
 /// Steps the folded sheet falls and settles for before it is timed.
 const SETTLE: usize = 40;
@@ -150,6 +156,96 @@ pub fn self_collision_rows(config: &PerfConfig) -> Vec<SelfCollisionRow> {
                 without,
                 with,
                 landing: (landing(&bare, &method), landing(&case, &method)),
+                broken,
+            });
+        }
+    }
+    rows
+}
+
+/// One row of the cloth-against-cloth table: the map's two sheets
+/// ([`TwoSheets`]) at one size and method, a frame of the app without and
+/// with their self-collision.
+#[derive(Clone, Debug)]
+pub struct TwoSheetsRow {
+    /// The method's label.
+    pub method: String,
+    /// Each sheet's side.
+    pub n: usize,
+    /// One `App::update` (a fixed step of both sheets) without
+    /// self-collision.
+    pub without: Timing,
+    /// The same with it (each sheet's own pairs, the other's vertices in
+    /// its step and the pass between the cloths).
+    pub with: Timing,
+    /// The most edges through (either sheet through the other or itself)
+    /// after any timed step with self-collision, or the guard's stop.
+    pub broken: Option<String>,
+}
+
+/// Steps the two sheets fall, land and drape for before they are timed,
+/// and the steps timed after.
+const TWO_SETTLE: usize = 60;
+const TWO_TIMED: usize = 60;
+
+/// Each update from [`TWO_SETTLE`] on, timed once, and what the exact
+/// check found wrong after them (with self-collision).
+fn time_two(n: usize, method: &AnyMethod, self_collision: bool) -> (Timing, Option<String>) {
+    let scene = TwoSheets {
+        cols: n,
+        seconds: 0.0,
+    };
+    let (mut app, sheets) = scene.app(method, self_collision);
+    let mut check = IntersectionCheck::default();
+    let mut times = Vec::with_capacity(TWO_TIMED);
+    let mut through = 0;
+    // The first update runs no fixed step.
+    for k in 0..=TWO_SETTLE + TWO_TIMED {
+        let t = Instant::now();
+        app.update();
+        let elapsed = t.elapsed().as_secs_f64();
+        let world = app.world();
+        let cloth = |e| world.get::<Cloth>(e).expect("a sheet");
+        let stats = |e| world.get::<ClothStats>(e).expect("a sheet's stats");
+        if let Some(e) = sheets.iter().find(|&&e| !stats(e).is_running()) {
+            // (Stopped before the timed steps: the stopping update alone.)
+            if times.is_empty() {
+                times.push(elapsed);
+            }
+            let why = format!("stopped at update {k}: {:?}", stats(*e).status);
+            return (Timing::of(times), Some(why));
+        }
+        if k > TWO_SETTLE {
+            times.push(elapsed);
+            if self_collision {
+                let (a, b) = (cloth(sheets[0]), cloth(sheets[1]));
+                let (xa, xb) = (&a.state().positions, &b.state().positions);
+                through = through.max(
+                    count_crossings((a.model(), xa), (b.model(), xb), &mut check)
+                        + count_intersections(a.model(), xa, &mut check)
+                        + count_intersections(b.model(), xb, &mut check),
+                );
+            }
+        }
+    }
+    (
+        Timing::of(times),
+        (through > 0).then(|| format!("{through} through")),
+    )
+}
+
+/// Every size of [`PerfConfig::two_sheet_sizes`] with every method.
+pub fn two_sheets_rows(config: &PerfConfig) -> Vec<TwoSheetsRow> {
+    let mut rows = Vec::new();
+    for &n in &config.two_sheet_sizes {
+        for (label, method) in methods() {
+            let (without, _) = time_two(n, &method, false);
+            let (with, broken) = time_two(n, &method, true);
+            rows.push(TwoSheetsRow {
+                method: label,
+                n,
+                without,
+                with,
                 broken,
             });
         }
