@@ -466,6 +466,16 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
     run
 }
 
+/// A caught panic's message: `panicked: ` and its text.
+pub(crate) fn panicked(panic: &(dyn std::any::Any + Send)) -> String {
+    let text = panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_default();
+    format!("panicked: {text}")
+}
+
 /// Why a run that ended with `result` (the run inside `catch_unwind`) and
 /// `failed` at `state` failed: the panic's text, the failure it gave, or a
 /// non-finite state the guard let through; `None` for a run that did not.
@@ -475,14 +485,7 @@ pub(crate) fn ended(
     state: &ClothState,
 ) -> Option<String> {
     match result {
-        Err(panic) => {
-            let text = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            Some(format!("panicked: {text}"))
-        }
+        Err(panic) => Some(panicked(&*panic)),
         Ok(()) if failed.is_none() && !state.is_finite() => {
             Some("non-finite state passed the guard".into())
         }

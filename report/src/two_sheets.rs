@@ -34,6 +34,7 @@ use bevy_cloth::{
 };
 
 use crate::contact::ContactRun;
+use crate::scenarios::panicked;
 
 /// Two `cols`² cotton sheets of 1 m, with self-collision at
 /// [`SelfCollision::for_model`], dropped from 0.65 m and 0.9 m (the upper
@@ -65,14 +66,7 @@ impl TwoSheets {
         let mut out = ContactRun::default();
         let result = catch_unwind(AssertUnwindSafe(|| self.run_into(method, &mut out)));
         out.failed = match result {
-            Err(panic) => Some(format!(
-                "panicked: {}",
-                panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_default()
-            )),
+            Err(panic) => Some(panicked(&*panic)),
             Ok(()) => out.failed.take(),
         };
         out
@@ -162,9 +156,7 @@ impl TwoSheets {
                 out.failed = Some("non-finite state passed the guard".into());
                 return;
             }
-            let through = count_crossings((a.model(), xa), (b.model(), xb), &mut check)
-                + count_intersections(a.model(), xa, &mut check)
-                + count_intersections(b.model(), xb, &mut check);
+            let through = edges_through(a, b, &mut check);
             out.penetrations = out.penetrations.max(through);
             out.unconverged = sheets
                 .iter()
@@ -177,6 +169,15 @@ impl TwoSheets {
                 .max(max_stretch(b.model(), xb));
         }
     }
+}
+
+/// The exact check on two cloths: the mesh edges of either through a
+/// triangle of the other, and through its own.
+pub fn edges_through(a: &Cloth, b: &Cloth, check: &mut IntersectionCheck) -> usize {
+    let (xa, xb) = (&a.state().positions, &b.state().positions);
+    count_crossings((a.model(), xa), (b.model(), xb), check)
+        + count_intersections(a.model(), xa, check)
+        + count_intersections(b.model(), xb, check)
 }
 
 #[cfg(test)]

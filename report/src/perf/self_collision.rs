@@ -8,16 +8,14 @@ use std::time::Instant;
 
 use bevy_cloth::AnyMethod;
 use bevy_cloth::XpbdSolver;
-use bevy_cloth::collision::self_contact::{
-    IntersectionCheck, count_crossings, count_intersections,
-};
+use bevy_cloth::collision::self_contact::{IntersectionCheck, count_intersections};
 use bevy_cloth::model::ClothState;
 use bevy_cloth::solver::guard::GuardError;
 use bevy_cloth::{Cloth, ClothStats};
 
 use super::{PerfConfig, Timing, time_samples};
 use crate::contact::{self, ContactCase, Stepper};
-use crate::two_sheets::TwoSheets;
+use crate::two_sheets::{TwoSheets, edges_through};
 
 /// Steps the folded sheet falls and settles for before it is timed.
 const SETTLE: usize = 40;
@@ -219,12 +217,7 @@ fn time_two(n: usize, method: &AnyMethod, self_collision: bool) -> (Timing, Opti
             times.push(elapsed);
             if self_collision {
                 let (a, b) = (cloth(sheets[0]), cloth(sheets[1]));
-                let (xa, xb) = (&a.state().positions, &b.state().positions);
-                through = through.max(
-                    count_crossings((a.model(), xa), (b.model(), xb), &mut check)
-                        + count_intersections(a.model(), xa, &mut check)
-                        + count_intersections(b.model(), xb, &mut check),
-                );
+                through = through.max(edges_through(a, b, &mut check));
             }
         }
     }
