@@ -140,7 +140,8 @@
 //!   the other cloths where they were at its start
 //!   ([`collision::self_contact::OtherVertex`]), and a joint pass after all
 //!   steps ([`collision::self_contact::ClothLayers`]) pushes apart what the
-//!   steps could not see.
+//!   steps could not see (for `stiff`, the vertices around each one it
+//!   pushed pulled after it, so that a push is not all one edge's stretch).
 //! - **No tunnelling** ([`collision::swept`]): the projection after the step
 //!   follows each vertex relative to its collider's motion over the step,
 //!   from where it was at the step's start; one that went through (a ball

@@ -106,7 +106,11 @@
 //! went through) back to the other end's side, [`UNTANGLE_MARGIN`] of the
 //! thickness past the plane, the triangle's corners taking their share by
 //! inverse mass, as a point–triangle contact would; the pairs do the rest
-//! in the next step. It costs the exact check, a small share of a `stiff`
+//! in the next step. The cloth around the moved vertices is then pulled
+//! after them (four rings of neighbours, each spring brought back to 2 %
+//! over its rest length or its length before the move): left alone, the
+//! springs of the moved end took the whole move, a third of an edge or
+//! more, in one step. It costs the exact check, a small share of a `stiff`
 //! step with self-collision but several steps of the other methods, so
 //! they leave it (the CHANGELOG has the measurements). Edges through
 //! another cloth are taken back the same way after every method's step
@@ -139,6 +143,7 @@ use grid::{CellBox, Entry, Linked};
 mod check;
 mod edges;
 mod faces;
+mod follow;
 mod grid;
 mod layers;
 mod objective;
@@ -149,6 +154,9 @@ pub use check::{
 };
 pub(crate) use check::{untangle, untangle_between};
 pub use faces::FACES_BELOW;
+#[cfg(test)]
+pub(crate) use follow::FOLLOW_RINGS;
+pub(crate) use follow::Follow;
 pub use layers::ClothLayers;
 pub(crate) use objective::PairTerms;
 pub use substeps::SUBSTEP_SKIN;

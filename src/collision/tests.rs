@@ -1,7 +1,16 @@
-use bevy::math::{Affine3A, Vec3A};
+use bevy::math::{Affine3A, Vec3, Vec3A};
 
 use super::*;
-use crate::model::ClothBuilder;
+use crate::model::{ClothBuilder, ClothModel};
+
+/// A flat `n`² sheet of 1 m in the xz plane at the origin, at rest.
+pub(crate) fn flat_sheet(n: usize) -> (ClothModel, Vec<Vec3A>) {
+    let model = ClothBuilder::grid(n, n, Vec3::ZERO, Vec3::X, Vec3::Z)
+        .build()
+        .unwrap();
+    let x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+    (model, x)
+}
 
 #[test]
 fn vertices_inside_are_projected_to_the_surface_with_matching_velocity() {
@@ -573,4 +582,5 @@ mod self_collision {
     }
 }
 
+mod layers;
 mod untangle;

@@ -98,6 +98,13 @@ pub struct Cloth {
     /// [`Sweep::share`](crate::collision::Sweep::share)).
     #[reflect(ignore)]
     pub(crate) last_substep: Option<f32>,
+    /// Set by the step system: the last step's method kept this cloth off
+    /// the other cloths inside its solve (`stiff`'s substeps; not PBD,
+    /// which limits its springs' strain itself), so the pass
+    /// between cloths after the steps pulls the rings around the vertices
+    /// it pushes after them
+    /// ([`ClothLayers::follow`](crate::collision::self_contact::ClothLayers::follow)).
+    pub(crate) held_others: bool,
 }
 
 /// A step's convergence measure, judged after the colliders' projection.

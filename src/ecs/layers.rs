@@ -136,8 +136,10 @@ fn moved_apart(a: [&[Vec3A]; 2], b: [&[Vec3A]; 2], reach: f32) -> bool {
 
 /// After the steps, in [`ClothSystems::Collide`](super::ClothSystems::Collide)
 /// before the colliders' projection: the cloths gathered before the step
-/// pushed apart where they came within their thickness of each other. A
-/// vertex moved counts as one of its cloth's contacts, its velocity changes
+/// pushed apart where they came within their thickness of each other (for
+/// a cloth whose method kept it off the others inside its step, `stiff`,
+/// the rings around each pushed vertex pulled after it). A vertex moved
+/// counts as one of its cloth's contacts, its velocity changes
 /// by that move over the step, and the guard measures the cloth again.
 /// Then the edges of each two cloths whose boxes meet that are already
 /// through the other's triangles are taken back out (positions only, as
@@ -189,6 +191,9 @@ pub(crate) fn collide_cloths(
             continue;
         };
         let cloth = &mut *cloth;
+        if cloth.held_others {
+            layers.follow(index, &cloth.model);
+        }
         let mut moved = 0;
         for ((x, v), &resolved) in cloth
             .state
@@ -242,6 +247,7 @@ pub(crate) fn collide_cloths(
                 (&cb.model, &mut cb.state.positions),
                 &mut check,
                 thickness,
+                [ca.held_others, cb.held_others],
             );
             memory.now.push(((a, b), through > 0));
             if through > 0 {

@@ -40,6 +40,8 @@ pub struct IntersectionCheck {
     /// The edges through a triangle found by [`untangle`]: the edge's ends
     /// and the triangle's index.
     found: Vec<(u32, u32, u32)>,
+    /// The cloth pulled after the vertices [`untangle`] moved.
+    follow: super::follow::Follow,
 }
 
 /// Whether the segment `p`–`q` passes through the triangle `a, b, c`: its
@@ -218,8 +220,10 @@ pub const UNTANGLE_MARGIN: f32 = 0.25;
 /// mass and where the end lies over the triangle), as a point–triangle
 /// contact would. Vertex–vertex self-collision keeps a surface from
 /// passing through itself but cannot take back an edge already through:
-/// its pushes hold the end on the side it is on. Returns the edges found
-/// through (before the moves).
+/// its pushes hold the end on the side it is on. The cloth around the
+/// moved vertices is then pulled after them (`Follow`), so that their
+/// springs do not take the whole move. Returns the edges found through
+/// (before the moves).
 pub(crate) fn untangle(
     model: &ClothModel,
     x: &mut [Vec3A],
@@ -242,12 +246,15 @@ pub(crate) fn untangle(
             thickness,
         );
         if let Some((end, by, shifts)) = move_ {
+            check.follow.moved(ends[end], x[ends[end]], x, true);
             x[ends[end]] += by;
             for (&k, shift) in corners.iter().zip(shifts) {
+                check.follow.moved(k, x[k], x, false);
                 x[k] += shift;
             }
         }
     }
+    check.follow.run(model, x);
     check.found = found;
     count
 }
@@ -256,17 +263,30 @@ pub(crate) fn untangle(
 /// triangle of the other are taken back out, the edge's end moved back to
 /// its other end's side, [`UNTANGLE_MARGIN`] of `thickness` past the
 /// triangle's plane, and the other cloth's corners taking their share.
+/// The rings of a cloth whose `follow` is set are pulled after its moved
+/// ends, as [`untangle`]'s are (the plugin sets it for `stiff`'s cloths;
+/// see [`ClothLayers::follow`](super::ClothLayers::follow)).
 /// Returns the edges found through (before the moves).
 pub(crate) fn untangle_between(
     (model_a, a): (&ClothModel, &mut [Vec3A]),
     (model_b, b): (&ClothModel, &mut [Vec3A]),
     check: &mut IntersectionCheck,
     thickness: f32,
+    follow: [bool; 2],
 ) -> usize {
     let mut first = None;
     for _ in 0..4 {
-        let found = untangle_through((model_b, &mut *b), (model_a, &mut *a), check, thickness)
-            + untangle_through((model_a, &mut *a), (model_b, &mut *b), check, thickness);
+        let found = untangle_through(
+            (model_b, &mut *b, follow[1]),
+            (model_a, &mut *a),
+            check,
+            thickness,
+        ) + untangle_through(
+            (model_a, &mut *a, follow[0]),
+            (model_b, &mut *b),
+            check,
+            thickness,
+        );
         first.get_or_insert(found);
         if found == 0 {
             break;
@@ -276,9 +296,9 @@ pub(crate) fn untangle_between(
 }
 
 /// The edges of the first cloth through the second's triangles, taken back
-/// out (see [`untangle_between`]).
+/// out, its rings following if `follow` (see [`untangle_between`]).
 fn untangle_through(
-    (edge_model, xe): (&ClothModel, &mut [Vec3A]),
+    (edge_model, xe, follow): (&ClothModel, &mut [Vec3A], bool),
     (model, x): (&ClothModel, &mut [Vec3A]),
     check: &mut IntersectionCheck,
     thickness: f32,
@@ -298,12 +318,16 @@ fn untangle_through(
             thickness,
         );
         if let Some((end, by, shifts)) = move_ {
+            if follow {
+                check.follow.moved(ends[end], xe[ends[end]], xe, true);
+            }
             xe[ends[end]] += by;
             for (&k, shift) in corners.iter().zip(shifts) {
                 x[k] += shift;
             }
         }
     }
+    check.follow.run(edge_model, xe);
     check.found = found;
     count
 }
