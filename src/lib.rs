@@ -141,7 +141,9 @@
 //!   ([`collision::self_contact::OtherVertex`]), and a joint pass after all
 //!   steps ([`collision::self_contact::ClothLayers`]) pushes apart what the
 //!   steps could not see (for `stiff`, the vertices around each one it
-//!   pushed pulled after it, so that a push is not all one edge's stretch).
+//!   pushed pulled after it, so that a push is not all one edge's stretch,
+//!   and then its own edges through its own triangles taken back out, as
+//!   its step ends with).
 //! - **No tunnelling** ([`collision::swept`]): the projection after the step
 //!   follows each vertex relative to its collider's motion over the step,
 //!   from where it was at the step's start; one that went through (a ball

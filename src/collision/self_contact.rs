@@ -128,7 +128,10 @@
 //! its view), and then takes back the edges of one through the other's
 //! triangles (above) where they can have gone through: the first step two
 //! cloths meet, after fast relative motion, and while edges are found
-//! (the plugin's `collide_cloths`).
+//! (the plugin's `collide_cloths`). A `stiff` cloth that either moved ends
+//! the pass with the untangling of its own edges, as its step ends: the
+//! vertices pulled after a pushed one ([`ClothLayers::follow`]) can cross
+//! its own folds.
 //!
 //! [`count_intersections`] is the exact check: how many mesh edges pass
 //! through a triangle that shares no vertex with them;

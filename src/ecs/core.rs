@@ -113,7 +113,7 @@ impl Plugin for ClothCorePlugin {
                         .after(place_and_pin)
                         .run_if(any_with_component::<super::ClothAttachments>),
                     guard_and_measure.in_set(ClothSystems::SyncOut),
-                    super::layers::gather_layers
+                    super::gather_layers
                         .in_set(ClothSystems::Forces)
                         .run_if(any_with_component::<crate::collision::SelfCollision>),
                     super::collide_cloths

@@ -52,7 +52,7 @@ macro_rules! for_each_cloth {
     };
 }
 pub(crate) use for_each_cloth;
-pub(crate) use layers::{ClothLayerVertices, collide_cloths};
+pub(crate) use layers::{ClothLayerVertices, collide_cloths, gather_layers};
 
 mod attach;
 mod collision;

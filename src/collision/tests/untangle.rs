@@ -63,7 +63,7 @@ fn step(model: &ClothModel, state: &mut ClothState, sc: SelfCollision, ws: &mut 
 /// the middle of one of its triangles), as a step that went wrong
 /// leaves it: the model, the thickness, the positions and the poked
 /// vertex.
-fn poked(n: u32) -> (ClothModel, SelfCollision, Vec<Vec3A>, usize) {
+pub(super) fn poked(n: u32) -> (ClothModel, SelfCollision, Vec<Vec3A>, usize) {
     let model = two_layers(n);
     let sc = SelfCollision::for_model(&model);
     let mut x = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
