@@ -25,7 +25,7 @@ use bevy_cloth::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
 use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
-use bevy_cloth::solver::{StepInput, StepParams, max_stretch};
+use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, ContactError, StepInput, StepParams, max_stretch};
 
 use crate::scenarios::ended;
 use crate::two_sheets::TwoSheets;
@@ -189,13 +189,20 @@ pub struct Stepper {
     backup: ClothState,
     memory: GuardMemory,
     motion: Vec<Vec3A>,
+    solved: Vec<Vec3A>,
+    error: ContactError,
 }
 
 impl Stepper {
     /// One step of `case` with `method`, the colliders at `solids` (moved
     /// by the step if one is thrown): the method under the guard (pause
     /// policy), self-collision after it unless the method handled it, the
-    /// swept projection. Returns the guard's verdict.
+    /// swept projection. Returns the guard's verdict and, for a step it
+    /// let through, whether the step converged as the plugin judges it
+    /// ([`ClothStats::converged`](bevy_cloth::ClothStats::converged): the
+    /// method's own relative error within [`CONVERGENCE_TOLERANCE`], or,
+    /// when the projection moved the cloth, measured again without what
+    /// the projection undid, [`ContactError`]).
     pub fn step(
         &mut self,
         case: &ContactCase,
@@ -203,7 +210,7 @@ impl Stepper {
         state: &mut ClothState,
         solids: &mut [Shape],
         moving: bool,
-    ) -> Result<(), GuardError> {
+    ) -> Result<bool, GuardError> {
         let model = &case.model;
         let dt = case.params.dt as f32;
         let mut params = case.params;
@@ -224,6 +231,8 @@ impl Stepper {
             backup,
             memory,
             motion,
+            solved,
+            error,
         } = self;
         let solids = &*solids;
         let done = guarded_step(
@@ -252,6 +261,11 @@ impl Stepper {
         {
             self_contacts.resolve_after_step(model, state, backup, &params, sc);
         }
+        let own = done.report.relative_error;
+        let remeasure = ContactError::applies(own, done.substeps == 1, CONVERGENCE_TOLERANCE);
+        if remeasure {
+            solved.clone_from(&state.positions);
+        }
         let sweep = Sweep {
             motion,
             start: &backup.positions,
@@ -259,7 +273,14 @@ impl Stepper {
             edges: false,
         };
         project_swept(model, state, solids, sweep, 0.0, dt);
-        Ok(())
+        let judged = if remeasure && *solved != state.positions {
+            error
+                .relative_error(model, backup, solved, &state.positions, &params)
+                .or(own)
+        } else {
+            own
+        };
+        Ok(judged.is_none_or(|e| e <= CONVERGENCE_TOLERANCE))
     }
 }
 
@@ -283,10 +304,11 @@ pub struct ContactRun {
     pub inside: usize,
     /// The largest spring stretch after any step.
     pub max_stretch: f32,
-    /// Steps the plugin flagged not converged (its
+    /// Steps flagged not converged: for the runs through the plugin
+    /// ([`TwoSheets`]) its
     /// [`ClothStats::unconverged_steps`](bevy_cloth::ClothStats::unconverged_steps),
-    /// the most of either cloth): measured for the runs through the plugin
-    /// ([`TwoSheets`]) only, 0 for the others.
+    /// the most of either cloth; for the others, [`Stepper::step`]'s
+    /// verdict, the plugin's rule.
     pub unconverged: usize,
 }
 
@@ -352,7 +374,7 @@ pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
     let result = catch_unwind(AssertUnwindSafe(|| {
         for n in 0..case.steps {
             match stepper.step(case, method, &mut state, &mut solids, n > 0) {
-                Ok(()) => {}
+                Ok(converged) => out.unconverged += usize::from(!converged),
                 Err(GuardError::Diverged { reason, .. }) => {
                     out.caught = Some((n, reason));
                     return;

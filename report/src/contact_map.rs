@@ -104,10 +104,12 @@ pub(crate) fn contact_section(
          upper turned by 20°) onto a 30 cm ball on the ground, {7} s, stepped through the \
          plugin (an `App`: each sheet's step sees the other's vertices, and the pass between \
          cloths runs after the steps): the most edges of either sheet through the other's \
-         triangles or its own after any step; its ⚑ is the share of steps the plugin flagged \
-         not converged (the most of either sheet), and a cell with more than {8:.0} % of them \
-         is not `✓`: such a sheet moves, but not as implicit Euler would (a stiff sheet \
-         locks, and can hang in the air apart and unstretched). \
+         triangles or its own after any step. In every row a cell's ⚑ is the share of steps \
+         flagged not converged by the plugin's rule (the method's own relative error over the \
+         default tolerance, measured again without what the projection undid; for the two \
+         sheets the plugin's own count, the most of either sheet), and a cell with more than \
+         {8:.0} % of them is not `✓`: such a sheet moves, but not as implicit Euler would (a \
+         stiff sheet locks, and can hang in the air apart and unstretched). \
          **Ball**: a free, level {2}² sheet of 2 m, a ball thrown up through it at \
          30 m/s (half a metre a step) from 0.4 m below it for eight steps: `held` if a ray from the ball's centre \
          along its motion met the sheet after every step and no vertex was left inside the \

@@ -97,7 +97,7 @@ fn time_step(
 ) -> (Timing, Option<String>) {
     let mut stepper = Stepper::default();
     let mut state = warm.clone();
-    let mut last = Ok(());
+    let mut last = Ok(true);
     let timing = time_samples(config.budget, config.min_samples, || {
         state.clone_from(warm);
         let mut solids = case.solids.clone();
@@ -108,7 +108,7 @@ fn time_step(
     let broken = match last {
         Err(GuardError::Diverged { reason, .. }) => Some(format!("guard: {reason:?}")),
         Err(GuardError::Refused(e)) => Some(format!("refused: {e}")),
-        Ok(()) if case.self_collision.is_some() => {
+        Ok(_) if case.self_collision.is_some() => {
             let through = count_intersections(
                 &case.model,
                 &state.positions,
@@ -116,7 +116,7 @@ fn time_step(
             );
             (through > 0).then(|| format!("{through} through"))
         }
-        Ok(()) => None,
+        Ok(_) => None,
     };
     (timing, broken)
 }
