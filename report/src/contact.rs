@@ -508,6 +508,24 @@ mod tests {
         assert!(without.cell(false).starts_with('✗'));
     }
 
+    /// The single-sheet rows flag steps as the plugin does: a method with
+    /// no relative error of its own (`stiff`) never, Jacobi's fixed
+    /// iterations on cotton's stiff springs in most steps, and its cell
+    /// says so.
+    #[test]
+    fn the_folded_sheet_flags_the_steps_the_plugin_would() {
+        let case = folded(16, 4, 0.5);
+        let stiff = run(&case, &AnyMethod::Xpbd(XpbdSolver::STIFF));
+        assert_eq!(stiff.unconverged, 0, "{stiff:?}");
+        let jacobi = bevy_cloth::methods::preset("jacobi").unwrap().method;
+        let flagged = run(&case, &jacobi);
+        println!("{flagged:?}");
+        assert_eq!((flagged.caught, flagged.failed.clone()), (None, None));
+        assert!(2 * flagged.unconverged > flagged.steps, "{flagged:?}");
+        let cell = flagged.cell(false);
+        assert!(cell.starts_with('✗') && cell.contains('⚑'), "{cell}");
+    }
+
     #[test]
     fn pbd_keeps_the_folded_sheet_from_passing_through_itself_within_its_iterations() {
         // Resolved only after its step, the pairs fought the next step's
