@@ -182,8 +182,14 @@ impl ContactCase {
 }
 
 /// What one step of a [`ContactCase`] keeps from step to step.
+///
+/// [`Stepper::default`] only steps; [`Stepper::judging`] also judges each
+/// step's convergence as the plugin does, which costs a copy of the
+/// positions and, for some steps, a second error measurement (so the perf
+/// page, which times the step alone, does not judge).
 #[derive(Default)]
 pub struct Stepper {
+    judge: bool,
     ws: AnyWorkspace,
     self_contacts: SelfContacts,
     backup: ClothState,
@@ -194,15 +200,24 @@ pub struct Stepper {
 }
 
 impl Stepper {
+    /// A stepper that also judges each step's convergence (the map's ⚑).
+    pub fn judging() -> Self {
+        Self {
+            judge: true,
+            ..Self::default()
+        }
+    }
+
     /// One step of `case` with `method`, the colliders at `solids` (moved
     /// by the step if one is thrown): the method under the guard (pause
     /// policy), self-collision after it unless the method handled it, the
     /// swept projection. Returns the guard's verdict and, for a step it
-    /// let through, whether the step converged as the plugin judges it
+    /// let through by a [`Stepper::judging`], whether the step converged
+    /// as the plugin judges it
     /// ([`ClothStats::converged`](bevy_cloth::ClothStats::converged): the
     /// method's own relative error within [`CONVERGENCE_TOLERANCE`], or,
     /// when the projection moved the cloth, measured again without what
-    /// the projection undid, [`ContactError`]).
+    /// the projection undid, [`ContactError`]); `None` if not judging.
     pub fn step(
         &mut self,
         case: &ContactCase,
@@ -210,7 +225,7 @@ impl Stepper {
         state: &mut ClothState,
         solids: &mut [Shape],
         moving: bool,
-    ) -> Result<bool, GuardError> {
+    ) -> Result<Option<bool>, GuardError> {
         let model = &case.model;
         let dt = case.params.dt as f32;
         let mut params = case.params;
@@ -226,6 +241,7 @@ impl Stepper {
         let bounds = GuardBounds::default().for_method(method.uses_stiffness());
         let sc = case.self_collision.map(SelfCollisionInput::alone);
         let Self {
+            judge,
             ws,
             self_contacts,
             backup,
@@ -262,7 +278,8 @@ impl Stepper {
             self_contacts.resolve_after_step(model, state, backup, &params, sc);
         }
         let own = done.report.relative_error;
-        let remeasure = ContactError::applies(own, done.substeps == 1, CONVERGENCE_TOLERANCE);
+        let remeasure =
+            *judge && ContactError::applies(own, done.substeps == 1, CONVERGENCE_TOLERANCE);
         if remeasure {
             solved.clone_from(&state.positions);
         }
@@ -280,7 +297,7 @@ impl Stepper {
         } else {
             own
         };
-        Ok(judged.is_none_or(|e| e <= CONVERGENCE_TOLERANCE))
+        Ok(judge.then(|| judged.is_none_or(|e| e <= CONVERGENCE_TOLERANCE)))
     }
 }
 
@@ -369,12 +386,12 @@ pub fn run(case: &ContactCase, method: &AnyMethod) -> ContactRun {
     let mut out = ContactRun::default();
     let mut state = case.start.clone();
     let mut solids = case.solids.clone();
-    let mut stepper = Stepper::default();
+    let mut stepper = Stepper::judging();
     let mut check = IntersectionCheck::default();
     let result = catch_unwind(AssertUnwindSafe(|| {
         for n in 0..case.steps {
             match stepper.step(case, method, &mut state, &mut solids, n > 0) {
-                Ok(converged) => out.unconverged += usize::from(!converged),
+                Ok(converged) => out.unconverged += usize::from(converged == Some(false)),
                 Err(GuardError::Diverged { reason, .. }) => {
                     out.caught = Some((n, reason));
                     return;
@@ -519,11 +536,33 @@ mod tests {
         assert_eq!(stiff.unconverged, 0, "{stiff:?}");
         let jacobi = bevy_cloth::methods::preset("jacobi").unwrap().method;
         let flagged = run(&case, &jacobi);
-        println!("{flagged:?}");
         assert_eq!((flagged.caught, flagged.failed.clone()), (None, None));
         assert!(2 * flagged.unconverged > flagged.steps, "{flagged:?}");
         let cell = flagged.cell(false);
         assert!(cell.starts_with('✗') && cell.contains('⚑'), "{cell}");
+    }
+
+    /// Judging is looked at, not done to the cloth: a stepper that judges
+    /// and one that does not take the same steps, and only the first
+    /// answers.
+    #[test]
+    fn judging_a_step_leaves_the_step_as_it_was() {
+        let case = folded(12, 4, 0.5);
+        let jacobi = bevy_cloth::methods::preset("jacobi").unwrap().method;
+        let [(judged, judged_positions), (bare, bare_positions)] =
+            [Stepper::judging(), Stepper::default()].map(|mut stepper| {
+                let mut state = case.start.clone();
+                let mut solids = case.solids.clone();
+                let verdicts: Vec<_> = (0..10)
+                    .map(|_| stepper.step(&case, &jacobi, &mut state, &mut solids, false))
+                    .map(|done| done.unwrap())
+                    .collect();
+                (verdicts, state.positions)
+            });
+        assert!(bare.iter().all(Option::is_none), "{bare:?}");
+        assert!(judged.iter().all(Option::is_some), "{judged:?}");
+        assert!(judged.contains(&Some(false)), "{judged:?}");
+        assert_eq!(judged_positions, bare_positions);
     }
 
     #[test]

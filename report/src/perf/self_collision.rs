@@ -97,7 +97,7 @@ fn time_step(
 ) -> (Timing, Option<String>) {
     let mut stepper = Stepper::default();
     let mut state = warm.clone();
-    let mut last = Ok(true);
+    let mut last = Ok(None);
     let timing = time_samples(config.budget, config.min_samples, || {
         state.clone_from(warm);
         let mut solids = case.solids.clone();
