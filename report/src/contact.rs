@@ -542,6 +542,56 @@ mod tests {
         assert!(cell.starts_with('✗') && cell.contains('⚑'), "{cell}");
     }
 
+    /// Self-collision on a cloth large enough for the parallel kernels
+    /// (the methods' spring and vertex passes in chunks on the compute
+    /// pool's threads; the pair search and passes are serial): the same
+    /// bits with and without the pool, with the pairs after the step
+    /// (Chebyshev), in the objective (`pd`) and in the substeps (`stiff`).
+    #[test]
+    fn self_collision_gives_the_same_bits_on_one_thread_and_two() {
+        use bevy::tasks::{ComputeTaskPool, TaskPoolBuilder};
+        let pool = ComputeTaskPool::get_or_init(|| TaskPoolBuilder::new().num_threads(2).build());
+        assert!(pool.thread_num() > 1);
+        // Until the sheet has landed on the ground (5 cm down).
+        const STEPS: usize = 8;
+        let case = folded(185, 4, 0.1);
+        assert!(case.model.vertex_count() >= bevy_cloth::solver::PARALLEL_MIN);
+        for name in ["chebyshev", "pd", "stiff"] {
+            let method = bevy_cloth::methods::preset(name).unwrap().method;
+            let bits = |parallel: bool| {
+                let mut case = case.clone();
+                case.params.parallel = parallel;
+                let mut state = case.start.clone();
+                let mut solids = case.solids.clone();
+                let mut stepper = Stepper::default();
+                for _ in 0..STEPS {
+                    stepper
+                        .step(&case, &method, &mut state, &mut solids, false)
+                        .unwrap();
+                }
+                (bits_of(&state), stepper.self_contacts.pair_count())
+            };
+            let (serial, pairs) = bits(false);
+            assert_ne!(serial, bits_of(&case.start), "{name}: the sheet moved");
+            // The pairs after the step (`stiff` holds them in its substeps).
+            assert!(name == "stiff" || pairs > 0, "{name}: no pairs");
+            assert!(
+                (serial, pairs) == bits(true),
+                "{name}: the pool changed the bits"
+            );
+        }
+    }
+
+    /// The bits of a state's positions and velocities.
+    fn bits_of(state: &ClothState) -> Vec<u32> {
+        state
+            .positions
+            .iter()
+            .chain(&state.velocities)
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect()
+    }
+
     /// Judging is looked at, not done to the cloth: a stepper that judges
     /// and one that does not take the same steps, and only the first
     /// answers.
