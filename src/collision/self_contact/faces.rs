@@ -43,9 +43,8 @@ pub(super) struct FacePair {
 #[derive(Clone, Debug, Default)]
 pub(super) struct Faces {
     pub(super) pairs: Vec<FacePair>,
-    /// The adjacency the shortest edge and `across` were made for, and
-    /// that edge.
-    shortest: (u64, f32),
+    /// The adjacency `across` was made for.
+    adjacency: u64,
     /// Per triangle, the vertices across its three edges (the third
     /// corners of the triangles that share an edge with it; `u32::MAX`
     /// where none).
@@ -163,12 +162,11 @@ impl Faces {
     /// `model` ([`FACES_BELOW`]).
     pub(super) fn needed(&mut self, model: &ClothModel, thickness: f32) -> bool {
         let id = model.topology().adjacency().id();
-        if self.shortest.0 != id || id == 0 {
-            self.shortest = (id, shortest_edge(model));
+        if self.adjacency != id || id == 0 {
+            self.adjacency = id;
             self.across = across(model.topology().triangles());
         }
-        let shortest = self.shortest.1;
-        shortest.is_finite() && thickness < FACES_BELOW * shortest
+        super::thin_for(model, thickness)
     }
 
     /// The step's pairs: each vertex at `x` moving at `v` and each
@@ -214,7 +212,7 @@ impl Faces {
                 [x.min(to) - m, x.max(to) + m]
             }));
         // Cells of twice the shortest edge: a triangle covers a few.
-        let inv = 0.5 / self.shortest.1;
+        let inv = 0.5 / shortest_edge(model);
         (self.frame, self.inv) = (frame, inv);
         let mut total = 0usize;
         self.triangle_boxes.clear();
