@@ -543,9 +543,10 @@ mod tests {
     }
 
     /// Self-collision on a cloth large enough for the parallel kernels
-    /// (the methods' spring and vertex passes in chunks on the compute
-    /// pool's threads; the pair search and passes are serial): the same
-    /// bits with and without the pool, with the pairs after the step
+    /// (Chebyshev's and `pd`'s spring and vertex passes in chunks on the
+    /// compute pool's threads; the pair search and passes are serial, and
+    /// so is `stiff`'s loop, for which this is a run-after-run check): the
+    /// same bits with and without the pool, with the pairs after the step
     /// (Chebyshev), in the objective (`pd`) and in the substeps (`stiff`).
     #[test]
     fn self_collision_gives_the_same_bits_on_one_thread_and_two() {
