@@ -64,8 +64,22 @@ fn main() -> ExitCode {
         .add_plugins(DrapeScenePlugin)
         .add_systems(Startup, setup)
         .add_systems(Update, (dress, throw_key))
-        .add_systems(EguiPrimaryContextPass, drape_panel);
+        .add_systems(EguiPrimaryContextPass, drape_panel)
+        .add_systems(Last, print_count_on_exit);
     common::run(app)
+}
+
+/// When the app exits (the screenshot mode's last frame, or the window
+/// closed), prints what the scene counted, in the words of `headless
+/// --scene drape`, so a windowed run can be set beside a headless one of as
+/// many steps.
+fn print_count_on_exit(mut exits: MessageReader<AppExit>, counted: Res<Penetrations>) {
+    if exits.read().next().is_some() {
+        println!(
+            "steps={} penetrations={} worst_step_penetrations={} max_stretch={:.4}",
+            counted.steps, counted.total, counted.worst, counted.max_stretch
+        );
+    }
 }
 
 fn setup(
