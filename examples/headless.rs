@@ -556,7 +556,7 @@ fn run_drape(o: &Options) -> Result<(), String> {
         .map(|(_, s, _)| format!("{:?}", s.status))
         .collect();
     println!(
-        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={} penetrations={} worst_step_penetrations={} ball_touches={} inside_ball={}",
+        "scene=Drape method={} vertices={vertices} sheets={} steps={} median_step_us={:.1} retried_steps={} max_stretch={:.4} self_contacts={} finite={finite} status={} {}",
         stats.method,
         run.sheets.len(),
         stats.steps,
@@ -568,10 +568,7 @@ fn run_drape(o: &Options) -> Result<(), String> {
         p.max_stretch,
         stats.self_contacts,
         statuses.join(","),
-        p.total,
-        p.worst,
-        p.ball_touches,
-        p.inside_ball,
+        p.summary(),
     );
     if finite && running {
         Ok(())

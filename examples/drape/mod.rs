@@ -82,6 +82,18 @@ pub struct Penetrations {
     pub inside_ball: usize,
 }
 
+impl Penetrations {
+    /// The count in the words both `headless --scene drape` and the
+    /// windowed example print: `penetrations= worst_step_penetrations=
+    /// ball_touches= inside_ball=`.
+    pub fn summary(&self) -> String {
+        format!(
+            "penetrations={} worst_step_penetrations={} ball_touches={} inside_ball={}",
+            self.total, self.worst, self.ball_touches, self.inside_ball
+        )
+    }
+}
+
 /// Scene time and whether the second sheet is down yet.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct DrapeClock {
