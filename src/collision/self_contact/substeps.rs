@@ -46,7 +46,10 @@ impl SelfContacts {
     /// is made again as soon as any of the cloth's vertices has (the other
     /// cloths' stand still through the step). A push in the pass that moves
     /// a vertex that far goes on over every pair after it, in order, as
-    /// `resolve` does.
+    /// `resolve` does. That holds for the vertex pairs; a thin setting's
+    /// vertex–triangle and edge pairs keep their lists through such a push
+    /// (and through one of their own), so a pair it brings within reach
+    /// waits for the next substep (`docs/measurements.md`).
     ///
     /// The pass covers the step from `progress[0]` to `progress[1]` (0 at
     /// the step's start, 1 at its end), and `start` has the vertices where
