@@ -52,7 +52,7 @@ pub(super) struct EdgePair {
     friction: f32,
     /// How far the step could bring them closer: an edge found further
     /// than that on the other side went round the other's end, not through.
-    reach: f32,
+    pub(super) reach: f32,
     /// Their distance when the step began if that was below `min` (else
     /// infinite): parted gradually, as vertex pairs are.
     pub(super) overlap: f32,
@@ -112,7 +112,7 @@ pub(super) fn closest_points(p0: Vec3A, p1: Vec3A, q0: Vec3A, q1: Vec3A) -> (f32
 /// The vector from the first segment's closest point to the second's, and
 /// their parameters.
 #[inline]
-fn between(x: [Vec3A; 4]) -> (Vec3A, [f32; 2]) {
+pub(super) fn between(x: [Vec3A; 4]) -> (Vec3A, [f32; 2]) {
     let (s, t) = closest_points(x[0], x[1], x[2], x[3]);
     (x[2].lerp(x[3], t) - x[0].lerp(x[1], s), [s, t])
 }
@@ -120,7 +120,7 @@ fn between(x: [Vec3A; 4]) -> (Vec3A, [f32; 2]) {
 /// The weights of the four ends in the difference of the closest points at
 /// parameters `[s, t]`.
 #[inline]
-fn weights([s, t]: [f32; 2]) -> [f32; 4] {
+pub(super) fn weights([s, t]: [f32; 2]) -> [f32; 4] {
     [-(1.0 - s), -s, 1.0 - t, t]
 }
 
@@ -308,21 +308,6 @@ impl Edges {
         })
     }
 
-    /// [`resolve`](Self::resolve) over the pairs numbered in `listed`, in
-    /// a pass over the step from `progress[0]` to `progress[1]` (see
-    /// [`parting`]).
-    pub(super) fn resolve_listed(
-        &self,
-        listed: &[u32],
-        x: &mut [Vec3A],
-        start: &impl Fn(usize) -> Vec3A,
-        progress: [f32; 2],
-        weight: &impl Fn(usize) -> f32,
-    ) -> Pass {
-        let pairs = listed.iter().filter_map(|&k| self.pairs.get(k as usize));
-        Pass::over(pairs, |p| resolve_pair(p, x, start, progress, weight))
-    }
-
     /// Appends to `list` the pairs whose edges are within their least
     /// distance plus `skin` of each other at `x`: the others cannot push
     /// while none of their ends has moved half of `skin`.
@@ -345,7 +330,7 @@ impl Edges {
 
 /// The positions of `ends` in `x`, if all are there.
 #[inline]
-fn gather(x: &[Vec3A], ends: [u32; 4]) -> Option<[Vec3A; 4]> {
+pub(super) fn gather(x: &[Vec3A], ends: [u32; 4]) -> Option<[Vec3A; 4]> {
     let [a, b, c, d] = ends.map(|j| x.get(j as usize).copied());
     Some([a?, b?, c?, d?])
 }
@@ -353,7 +338,7 @@ fn gather(x: &[Vec3A], ends: [u32; 4]) -> Option<[Vec3A; 4]> {
 /// One pair of [`Edges::resolve`]: how deep it was, as a share of its
 /// least distance, if it was pushed.
 #[inline]
-fn resolve_pair(
+pub(super) fn resolve_pair(
     p: &EdgePair,
     x: &mut [Vec3A],
     start: &impl Fn(usize) -> Vec3A,

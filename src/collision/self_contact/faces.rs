@@ -350,21 +350,6 @@ impl Faces {
         })
     }
 
-    /// [`resolve`](Self::resolve) over the pairs numbered in `listed`, in
-    /// a pass over the step from `progress[0]` (where `start` has the
-    /// vertices) to `progress[1]` (see [`parting`]).
-    pub(super) fn resolve_listed(
-        &self,
-        listed: &[u32],
-        x: &mut [Vec3A],
-        start: &impl Fn(usize) -> Vec3A,
-        progress: [f32; 2],
-        weight: &impl Fn(usize) -> f32,
-    ) -> Pass {
-        let pairs = listed.iter().filter_map(|&k| self.pairs.get(k as usize));
-        Pass::over(pairs, |p| resolve_pair(p, x, start, progress, weight))
-    }
-
     /// Appends to `list` the pairs whose vertex is within its least
     /// distance plus `skin` of its triangle at `x`: the others cannot push
     /// while none of their four vertices has moved half of `skin` (a point
@@ -394,7 +379,7 @@ impl Faces {
 /// One pair of [`Faces::resolve`]: how deep it was, as a share of its
 /// least distance, if it was pushed.
 #[inline]
-fn resolve_pair(
+pub(super) fn resolve_pair(
     p: &FacePair,
     x: &mut [Vec3A],
     start: &impl Fn(usize) -> Vec3A,

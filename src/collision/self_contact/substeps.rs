@@ -5,7 +5,7 @@
 
 use bevy::math::Vec3A;
 
-use super::SelfContacts;
+use super::{SelfContacts, edges, faces};
 use crate::model::ClothModel;
 
 /// How far beyond its least distance, as a share of the thickness, a pair
@@ -45,11 +45,8 @@ impl SelfContacts {
     /// while neither of its vertices has moved half that far, and the list
     /// is made again as soon as any of the cloth's vertices has (the other
     /// cloths' stand still through the step). A push in the pass that moves
-    /// a vertex that far goes on over every pair after it, in order, as
-    /// `resolve` does. That holds for the vertex pairs; a thin setting's
-    /// vertex–triangle and edge pairs keep their lists through such a push
-    /// (and through one of their own), so a pair it brings within reach
-    /// waits for the next substep (`docs/measurements.md`).
+    /// a vertex that far goes on over every pair after it, of every kind and
+    /// in order, as `resolve` does.
     ///
     /// The pass covers the step from `progress[0]` to `progress[1]` (0 at
     /// the step's start, 1 at its end), and `start` has the vertices where
@@ -67,48 +64,42 @@ impl SelfContacts {
         let [_, to] = progress;
         self.refresh_active(x);
         let weight = |i| self.weight(model, i);
-        let (active, at) = (&self.active.pairs, &self.active.at);
+        let at = &self.active.at;
         let limit = 0.49 * self.active.skin;
-        let far = |x: &[Vec3A], i: usize| {
-            at.get(i)
-                .is_some_and(|&at| x[i].distance_squared(at) > limit * limit)
+        let far = |x: &[Vec3A], i: u32| {
+            at.get(i as usize)
+                .is_some_and(|&at| x[i as usize].distance_squared(at) > limit * limit)
         };
-        let mut touching = 0;
-        let mut rest = None;
-        for &k in active {
-            let p = &self.pairs[k as usize];
-            if self.resolve_pair(p, x, &start, to, &weight).is_some() {
-                touching += 1;
-                if far(x, p.a as usize) || far(x, p.b as usize) {
-                    rest = Some(k as usize + 1);
-                    break;
-                }
-            }
-        }
-        if let Some(from) = rest {
-            touching += self
-                .resolve_weighted(self.pairs[from..].iter(), x, &start, to, weight)
-                .touching;
-            // A vertex moved beyond the list's reach.
+        // Once a push has moved a vertex beyond the lists' reach, every
+        // pair after it is passed over, of every kind, as `resolve` does.
+        let mut beyond = false;
+        let mut touching = listed_pass(
+            &self.pairs,
+            &self.active.pairs,
+            x,
+            &mut beyond,
+            |x, p| far(x, p.a) || far(x, p.b),
+            |p, x| self.resolve_pair(p, x, &start, to, &weight),
+        );
+        touching += listed_pass(
+            &self.faces.pairs,
+            &self.active.faces,
+            x,
+            &mut beyond,
+            |x, p| far(x, p.vertex) || p.triangle.iter().any(|&j| far(x, j)),
+            |p, x| faces::resolve_pair(p, x, &start, progress, &weight),
+        );
+        touching += listed_pass(
+            &self.edges.pairs,
+            &self.active.edges,
+            x,
+            &mut beyond,
+            |x, p| p.ends.iter().any(|&j| far(x, j)),
+            |p, x| edges::resolve_pair(p, x, &start, progress, &weight),
+        );
+        if beyond {
+            // Made again at the next substep.
             self.active.at.clear();
-        }
-        if !self.active.faces.is_empty() {
-            let weight = |i| self.weight(model, i);
-            // (Their pushes are seen by the next substep's check of the
-            // lists, as the pairs' own are.)
-            let listed = &self.active.faces;
-            touching += self
-                .faces
-                .resolve_listed(listed, x, &start, progress, &weight)
-                .touching;
-        }
-        if !self.active.edges.is_empty() {
-            let weight = |i| self.weight(model, i);
-            let listed = &self.active.edges;
-            touching += self
-                .edges
-                .resolve_listed(listed, x, &start, progress, &weight)
-                .touching;
         }
         touching
     }
@@ -162,4 +153,41 @@ impl SelfContacts {
             }
         }
     }
+}
+
+/// One kind's pass of [`SelfContacts::resolve_substep`]: `push` over the
+/// pairs numbered in `listed`, in order, until one leaves a vertex `far`
+/// from where the lists were made; from then on (`beyond`, set here or by
+/// an earlier kind's pass) over every pair after it, as the full pass
+/// does. Returns the pairs found touching.
+fn listed_pass<P>(
+    pairs: &[P],
+    listed: &[u32],
+    x: &mut [Vec3A],
+    beyond: &mut bool,
+    far: impl Fn(&[Vec3A], &P) -> bool,
+    mut push: impl FnMut(&P, &mut [Vec3A]) -> Option<f32>,
+) -> u32 {
+    let mut touching = 0;
+    let mut from = 0;
+    if !*beyond {
+        from = pairs.len();
+        for &k in listed {
+            let p = &pairs[k as usize];
+            if push(p, x).is_some() {
+                touching += 1;
+                if far(x, p) {
+                    *beyond = true;
+                    from = k as usize + 1;
+                    break;
+                }
+            }
+        }
+    }
+    for p in &pairs[from..] {
+        if push(p, x).is_some() {
+            touching += 1;
+        }
+    }
+    touching
 }
