@@ -365,3 +365,73 @@ fn a_thin_setting_keeps_two_edges_from_passing_through_each_other() {
         assert!(y > 0.0, "edge {a}–{b} at {y}");
     }
 }
+
+/// A crease closing onto itself at the default thickness (vertex pairs
+/// only): vertex 0 of the upper cell comes down through the lower cell's
+/// triangle (2, 5, 4) near corner 2, which a stretch spring joins it to,
+/// while staying further than the thickness from 4 and 5, so no vertex pair
+/// pushes it (the drape's crease at step 100). The triangles around its
+/// pair with 4 keep it on its side.
+#[test]
+fn a_closing_crease_keeps_a_vertex_off_the_triangles_of_its_pair() {
+    use crate::collision::self_contact::{FACES_BELOW, SelfContacts};
+    // Two cells along z, one edge wide, flat at rest (vertex (row,
+    // column) is 2·row + column, at (column, 0, row)).
+    let positions = (0..6)
+        .map(|i| Vec3::new((i % 2) as f32, 0.0, (i / 2) as f32))
+        .collect();
+    let indices = vec![0, 3, 2, 0, 1, 3, 2, 5, 4, 2, 3, 5];
+    let model = ClothBuilder::from_triangles(positions, indices)
+        .with_material(ClothMaterial::COTTON)
+        .build()
+        .unwrap();
+    let sc = SelfCollision {
+        thickness: 0.75,
+        friction: 0.0,
+    };
+    sc.validate(&model).unwrap();
+    const { assert!(0.75 >= FACES_BELOW, "a thick setting: vertex pairs only") };
+    // The upper cell folded over the lower one, the crease along row 1.
+    let mut start = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+    start[0] = Vec3A::new(0.1, 0.3, 1.3);
+    start[1] = Vec3A::new(1.0, 0.8, 0.6);
+    let dt = 1.0 / 60.0;
+    let v: Vec<Vec3A> = (0..6)
+        .map(|i| Vec3A::new(0.0, if i == 0 { -0.6 / dt } else { 0.0 }, 0.0))
+        .collect();
+    let x: Vec<Vec3A> = start.iter().zip(&v).map(|(&x, &v)| x + v * dt).collect();
+    // The step takes vertex 0 through the triangle's plane, over it, and
+    // leaves it further than the thickness from every vertex it is not
+    // joined to by a spring: vertex pairs alone do not push it.
+    assert!(x[0].y < 0.0 && x[0].z > 1.0 + x[0].x);
+    assert!(x[0].distance(x[4]) > sc.thickness && x[0].distance(x[5]) > sc.thickness);
+    // Its height over the triangle after a step's passes, the pairs
+    // around the vertex pairs made or not, and the face pairs found.
+    let after = |around: bool| {
+        let mut x = x.clone();
+        let mut contacts = SelfContacts::default();
+        contacts.around = around;
+        contacts.find(&model, &start, &v, dt, SelfCollisionInput::alone(sc), 0.0);
+        assert!(
+            contacts
+                .pair_list()
+                .iter()
+                .any(|&(a, b, _)| (a, b) == (0, 4))
+        );
+        for _ in 0..4 {
+            contacts.resolve(&model, &mut x, |i| start[i], 1.0);
+        }
+        let normal = (x[5] - x[2]).cross(x[4] - x[2]).normalize();
+        let side = (start[0] - start[2]).dot(normal).signum();
+        ((x[0] - x[2]).dot(normal) * side, contacts.face_pair_count())
+    };
+    // Vertex pairs alone leave it through.
+    let (height, found) = after(false);
+    assert!(height < 0.0 && found == 0, "{height} {found}");
+    // Back above the triangle's plane (it started above).
+    let (height, found) = after(true);
+    assert!(
+        height > 0.0 && found > 0,
+        "vertex 0 is {height} past the triangle"
+    );
+}
