@@ -58,23 +58,6 @@
 //! further apart, a crumpled corner stretched against its springs; the
 //! measurements are in `docs/measurements.md`).
 //!
-//! # A closing crease
-//!
-//! Vertex pairs leave one gap at a thick setting: a crease folding a row
-//! onto the next but one. A vertex of the upper cell can pass through the
-//! lower cell's triangle beside the corner it is joined to by a spring
-//! (no pair: they are neighbours) while keeping the thickness from the
-//! triangle's other corners (the drape's second sheet at step 100, 2
-//! edges through under `stiff`). So where the pairs are resolved in
-//! substeps or iterations (`stiff`, PBD), a thick setting's search also
-//! pairs each vertex of a vertex pair with the triangles holding the
-//! other (but for those holding it or beside it), as the thin setting's
-//! vertex–triangle pairs, kept [`AROUND_SHARE`] of the thickness off the
-//! triangle's plane. After a single step's passes (Chebyshev and the
-//! others) they pushed a crumpling sheet's vertices most of an edge and
-//! tangled it (18,000 edges through against 80), so they are not made
-//! there.
-//!
 //! # The loop
 //!
 //! - [`SelfContacts::find`] once per step: the pairs that can come within
@@ -173,7 +156,7 @@ pub use check::{
     IntersectionCheck, UNTANGLE_MARGIN, count_crossings, count_intersections, ray_meets,
 };
 pub(crate) use check::{untangle, untangle_between};
-pub use faces::{AROUND_SHARE, FACES_BELOW};
+pub use faces::FACES_BELOW;
 #[cfg(test)]
 pub(crate) use follow::FOLLOW_RINGS;
 pub(crate) use follow::Follow;
@@ -316,11 +299,6 @@ pub struct SelfContacts {
     skipped: usize,
     /// The cloth's own vertices among the step's: the others' come after.
     own: usize,
-    /// Whether a thick setting's search also makes the vertex–triangle
-    /// pairs around its vertex pairs (see the [module docs](self), "A
-    /// closing crease"): set by the methods that resolve the pairs in
-    /// their substeps or iterations.
-    pub(crate) around: bool,
     /// The other cloths' vertices of the step.
     others: Vec<OtherVertex>,
     /// Scratch: the cloth's and the other cloths' positions and velocities.
@@ -506,16 +484,21 @@ impl SelfContacts {
         // A thin setting's vertex–triangle and edge–edge pairs: found anew
         // every step.
         self.linked.update(model);
-        let search = faces::FaceSearch::new(model, &self.linked, dt, [thickness, friction, slack]);
-        let thin = self.faces.find(x, v, search);
-        if thin {
+        let search = faces::FaceSearch {
+            model,
+            linked: &self.linked,
+            dt,
+            thickness,
+            friction,
+            slack,
+        };
+        if self.faces.find(x, v, search) {
             let faces = &self.faces;
             let grid = (faces.frame, faces.inv);
             self.edges.find(x, v, &faces.vertex_boxes, grid, &search);
         } else {
             self.edges.pairs.clear();
         }
-        let around = (!thin && self.around).then_some((dt, thickness, friction, slack));
         let n = model.vertex_count().min(x.len()).min(v.len());
         let pinned = model.pinned();
         let topology = model.topology();
@@ -541,7 +524,6 @@ impl SelfContacts {
             }
             self.own = n;
             self.others.clear();
-            self.find_around(model, x, v, around);
             return;
         }
         // Keep the new list if the cloth moves slowly enough (measured as
@@ -620,7 +602,6 @@ impl SelfContacts {
             self.kept.pins.clear();
             self.kept.pins.extend_from_slice(model.pins());
         }
-        self.find_around(model, x, v, around);
     }
 
     /// The step's pairs as `(a, b, least distance)`, in their order.
@@ -666,9 +647,7 @@ impl SelfContacts {
     }
 
     /// Vertex–triangle pairs found for the step: none unless the thickness
-    /// is below [`FACES_BELOW`] of the cloth's shortest rest edge, or the
-    /// pairs are resolved in substeps (see the [module docs](self), "A
-    /// closing crease").
+    /// is below [`FACES_BELOW`] of the cloth's shortest rest edge.
     pub fn face_pair_count(&self) -> usize {
         self.faces.pairs.len()
     }

@@ -9,7 +9,7 @@ use bevy::math::Vec3A;
 use super::grid::{
     CellBox, EMPTY_BOX, Linked, bucket, cell_box, fill_table, for_each_cell, mean_velocity,
 };
-use super::{Pass, SelfContacts, UNTANGLE, shortest_edge};
+use super::{Pass, UNTANGLE, shortest_edge};
 use crate::model::ClothModel;
 
 /// Below this share of the cloth's shortest rest edge, a thickness gets
@@ -22,17 +22,6 @@ pub const FACES_BELOW: f32 = 0.71;
 /// plane still counts as over it: the cloth's triangles meet at an angle,
 /// and a vertex over their shared edge is then just outside both.
 pub(super) const OVER: f32 = 0.02;
-
-/// The share of a thick setting's thickness its vertex–triangle pairs
-/// around its vertex pairs (see the [parent module](super), "A closing
-/// crease") keep a vertex off a triangle's plane, where a method resolves
-/// them in its substeps or iterations (`stiff`, PBD). On the drape, 600
-/// steps (dev builds): at 0.85 `stiff` left no edge through at 2.2 %
-/// stretch (2 at 7.7 % without them; 0 at 2.2 % with the thrown ball
-/// too); at 1.0, 0 at 4.9 %; at 0.7 the thrown ball stretched both sheets
-/// until the guard stopped them; at 0.5 and below the crease went through
-/// as without them (`docs/measurements.md`).
-pub const AROUND_SHARE: f32 = 0.85;
 
 /// One vertex kept off one triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,13 +49,6 @@ pub(super) struct Faces {
     /// corners of the triangles that share an edge with it; `u32::MAX`
     /// where none).
     across: Vec<[u32; 3]>,
-    /// The triangles holding each vertex: vertex `i`'s are
-    /// `holding[holding_starts[i]..holding_starts[i + 1]]`.
-    holding_starts: Vec<u32>,
-    holding: Vec<u32>,
-    /// The (vertex, triangle) pairs [`around`](Self::around) has made, each
-    /// once (two of a vertex's pairs can share a triangle).
-    seen: std::collections::HashSet<(u32, u32)>,
     /// Each vertex's swept box (m), in the frame moving at `frame`, and
     /// the grid's inverse cell size (the edge–edge search reads them).
     pub(super) vertex_boxes: Vec<[Vec3A; 2]>,
@@ -164,91 +146,6 @@ fn across(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
     out
 }
 
-/// Whether vertex `i` is left out of a pair with `triangle` (whose
-/// vertices across its edges are `across`): the triangle holds it, is
-/// beside it (across one of its edges, or two of its corners joined to the
-/// vertex by a stretch or shear spring: a crease folds them onto each
-/// other), or all four are pinned.
-#[inline]
-fn beside(i: usize, triangle: [u32; 3], across: &[u32; 3], s: FaceSearch<'_>) -> bool {
-    let corners = triangle.map(|j| j as usize);
-    let pinned = s.model.pinned();
-    triangle.contains(&(i as u32))
-        || across.contains(&(i as u32))
-        || (pinned[i] && corners.iter().all(|&j| pinned[j]))
-        || corners.iter().filter(|&&j| s.linked.joins(i, j)).count() >= 2
-}
-
-/// Vertex `i` and `triangle` made a pair: its side of the triangle at the
-/// step's start (or, within a ten-thousandth of the thickness of its plane,
-/// where its velocity takes it; `None` if on the plane both times), its
-/// least distance (the thickness, or its rest distance where that is
-/// shorter) and its overlap.
-#[inline]
-fn face_pair(
-    i: usize,
-    triangle: [u32; 3],
-    x: &[Vec3A],
-    v: &[Vec3A],
-    s: FaceSearch<'_>,
-) -> Option<FacePair> {
-    let [a, b, c] = triangle.map(|j| j as usize);
-    let (dt, thickness) = (s.dt, s.thickness);
-    let tiny = 1e-4 * thickness;
-    let end = |j: usize| x[j] + v[j] * dt;
-    let (h0, _) = plane_distance(x[a], x[b], x[c], x[i])?;
-    let h1 = plane_distance(end(a), end(b), end(c), end(i)).map_or(h0, |(h, _)| h);
-    let side = if h0.abs() > tiny {
-        h0.signum()
-    } else if h1.abs() > tiny {
-        h1.signum()
-    } else {
-        return None;
-    };
-    let rest = s.model.topology().rest_positions();
-    let r = |j: usize| Vec3A::from(rest[j]);
-    let min = thickness.min(triangle_distance(r(a), r(b), r(c), r(i)));
-    if min.is_nan() || min <= 0.0 {
-        return None;
-    }
-    let start = h0 * side;
-    Some(FacePair {
-        vertex: i as u32,
-        triangle,
-        side,
-        min,
-        friction: s.friction,
-        overlap: if start < min {
-            start.max(0.0)
-        } else {
-            f32::INFINITY
-        },
-    })
-}
-
-impl SelfContacts {
-    /// A thick setting's vertex–triangle pairs around the step's vertex
-    /// pairs of the cloth's own (see the [parent module](super), "A closing
-    /// crease"), given `(dt, thickness, friction, slack)`; none (`None`)
-    /// for a thin setting, whose search found its own, or where
-    /// [`around`](Self::around) is off.
-    pub(super) fn find_around(
-        &mut self,
-        model: &ClothModel,
-        x: &[Vec3A],
-        v: &[Vec3A],
-        around: Option<(f32, f32, f32, f32)>,
-    ) {
-        let Some((dt, thickness, friction, slack)) = around else {
-            return;
-        };
-        let own = self.own;
-        let search = FaceSearch::new(model, &self.linked, dt, [thickness, friction, slack]);
-        let pairs = self.pairs.iter().filter(|p| (p.b as usize) < own);
-        self.faces.around(x, v, pairs.map(|p| (p.a, p.b)), search);
-    }
-}
-
 /// What [`Faces::find`] reads besides the positions and velocities.
 #[derive(Clone, Copy)]
 pub(super) struct FaceSearch<'a> {
@@ -260,113 +157,16 @@ pub(super) struct FaceSearch<'a> {
     pub(super) slack: f32,
 }
 
-impl<'a> FaceSearch<'a> {
-    /// The search of `model`'s pairs, its vertices `linked`, in a step of
-    /// `dt`, for `[thickness, friction, slack]`.
-    pub(super) fn new(
-        model: &'a ClothModel,
-        linked: &'a Linked,
-        dt: f32,
-        [thickness, friction, slack]: [f32; 3],
-    ) -> Self {
-        Self {
-            model,
-            linked,
-            dt,
-            thickness,
-            friction,
-            slack,
-        }
-    }
-}
-
 impl Faces {
     /// Whether a thickness of `thickness` needs vertex–triangle pairs on
     /// `model` ([`FACES_BELOW`]).
     pub(super) fn needed(&mut self, model: &ClothModel, thickness: f32) -> bool {
-        self.refresh(model);
-        super::thin_for(model, thickness)
-    }
-
-    /// Makes `across` and `holding` again for a new mesh.
-    fn refresh(&mut self, model: &ClothModel) {
         let id = model.topology().adjacency().id();
         if self.adjacency != id || id == 0 {
             self.adjacency = id;
-            let triangles = model.topology().triangles();
-            self.across = across(triangles);
-            // A counting sort of the triangles by corner.
-            let n = model.vertex_count();
-            self.holding_starts.clear();
-            self.holding_starts.resize(n + 1, 0);
-            for &j in triangles.iter().flatten() {
-                if let Some(c) = self.holding_starts.get_mut(j as usize + 1) {
-                    *c += 1;
-                }
-            }
-            for i in 0..n {
-                self.holding_starts[i + 1] += self.holding_starts[i];
-            }
-            let mut next = self.holding_starts.clone();
-            self.holding.clear();
-            self.holding.resize(self.holding_starts[n] as usize, 0);
-            for (t, tri) in triangles.iter().enumerate() {
-                for &j in tri {
-                    if let Some(at) = next.get_mut(j as usize) {
-                        self.holding[*at as usize] = t as u32;
-                        *at += 1;
-                    }
-                }
-            }
+            self.across = across(model.topology().triangles());
         }
-    }
-
-    /// A thick setting's pairs (see the [parent module](super), "A
-    /// closing crease"): for each of the step's vertex pairs `(a,
-    /// b)` of the cloth's own, `a` against each triangle holding `b` and
-    /// `b` against each holding `a`, but for a triangle that holds the
-    /// vertex or is beside it (as [`find`](Self::find) leaves out), in the
-    /// order of `vertex_pairs`, each once. Where a crease closes onto
-    /// itself, the vertices across it are a pair, and a vertex next to its
-    /// own spring neighbours' triangles (which no vertex pair keeps it off)
-    /// is so kept on its side of them. Replaces the pairs.
-    pub(super) fn around(
-        &mut self,
-        x: &[Vec3A],
-        v: &[Vec3A],
-        vertex_pairs: impl Iterator<Item = (u32, u32)>,
-        s: FaceSearch<'_>,
-    ) {
-        self.pairs.clear();
-        self.refresh(s.model);
-        let triangles = s.model.topology().triangles();
-        let n = s.model.vertex_count().min(x.len()).min(v.len());
-        if self.holding_starts.len() != n + 1 {
-            return;
-        }
-        for (a, b) in vertex_pairs {
-            for (i, other) in [(a as usize, b as usize), (b as usize, a as usize)] {
-                if i >= n || other >= n {
-                    continue;
-                }
-                let held =
-                    self.holding_starts[other] as usize..self.holding_starts[other + 1] as usize;
-                for &t in &self.holding[held] {
-                    let triangle = triangles[t as usize];
-                    if beside(i, triangle, &self.across[t as usize], s)
-                        || !self.seen.insert((i as u32, t))
-                    {
-                        continue;
-                    }
-                    let around = FaceSearch {
-                        thickness: AROUND_SHARE * s.thickness,
-                        ..s
-                    };
-                    self.pairs.extend(face_pair(i, triangle, x, v, around));
-                }
-            }
-        }
-        self.seen.clear();
+        super::thin_for(model, thickness)
     }
 
     /// The step's pairs: each vertex at `x` moving at `v` and each
@@ -382,15 +182,21 @@ impl Faces {
         self.pairs.clear();
         let FaceSearch {
             model,
+            linked,
             dt,
             thickness,
+            friction,
             slack,
-            ..
         } = s;
         if !self.needed(model, thickness) {
             return false;
         }
-        let triangles = model.topology().triangles();
+        let topology = model.topology();
+        let (triangles, rest, pinned) = (
+            topology.triangles(),
+            topology.rest_positions(),
+            model.pinned(),
+        );
         let n = model.vertex_count().min(x.len()).min(v.len());
         if triangles.is_empty() || n < 4 {
             return false;
@@ -445,6 +251,7 @@ impl Faces {
         let (starts, entries, across) = (&self.starts, &self.entries, &self.across);
         let (triangle_boxes, triangle_cells) = (&self.triangle_boxes, &self.triangle_cells);
         let pairs = &mut self.pairs;
+        let tiny = 1e-4 * thickness;
         for (i, &[lo, hi]) in self.vertex_boxes.iter().enumerate() {
             if !(x[i].is_finite() && v[i].is_finite()) {
                 continue;
@@ -473,7 +280,11 @@ impl Faces {
                     }
                     let triangle = triangles[t as usize];
                     let [a, b, c3] = triangle.map(|j| j as usize);
-                    if beside(i, triangle, &across[t as usize], s) {
+                    if triangle.contains(&(i as u32))
+                        || across[t as usize].contains(&(i as u32))
+                        || (pinned[i] && pinned[a] && pinned[b] && pinned[c3])
+                        || [a, b, c3].iter().filter(|&&j| linked.joins(i, j)).count() >= 2
+                    {
                         continue;
                     }
                     let corners = [a, b, c3]
@@ -485,7 +296,36 @@ impl Faces {
                     if triangle_distance(x[a], x[b], x[c3], x[i]) > reach {
                         continue;
                     }
-                    pairs.extend(face_pair(i, triangle, x, v, s));
+                    let end = |j: usize| x[j] + v[j] * dt;
+                    let Some((h0, _)) = plane_distance(x[a], x[b], x[c3], x[i]) else {
+                        continue;
+                    };
+                    let h1 = plane_distance(end(a), end(b), end(c3), end(i)).map_or(h0, |(h, _)| h);
+                    let side = if h0.abs() > tiny {
+                        h0.signum()
+                    } else if h1.abs() > tiny {
+                        h1.signum()
+                    } else {
+                        continue;
+                    };
+                    let r = |j: usize| Vec3A::from(rest[j]);
+                    let min = thickness.min(triangle_distance(r(a), r(b), r(c3), r(i)));
+                    if min.is_nan() || min <= 0.0 {
+                        continue;
+                    }
+                    let start = h0 * side;
+                    pairs.push(FacePair {
+                        vertex: i as u32,
+                        triangle,
+                        side,
+                        min,
+                        friction,
+                        overlap: if start < min {
+                            start.max(0.0)
+                        } else {
+                            f32::INFINITY
+                        },
+                    });
                 }
             });
         }

@@ -140,8 +140,6 @@ impl Method for PbdSolver {
         ws.start.clear();
         if let Some(sc) = self_collision {
             let slack = gravity.length() * dt * dt;
-            // Resolved after every iteration: as `stiff`'s substeps.
-            ws.self_contacts.around = true;
             ws.self_contacts
                 .find_or_keep(model, x, v, dt, sc, slack, true);
             ws.start.extend_from_slice(&x[..n]);

@@ -499,9 +499,6 @@ impl Method for XpbdSolver {
         // scene tangled.)
         if let Some(sc) = self_collision {
             let slack = gravity.length() * (params.dt * params.dt) as f32;
-            // Resolved in every substep: a thick setting keeps a closing
-            // crease's vertices off the triangles around their pairs too.
-            ws.self_contacts.around = true;
             ws.self_contacts
                 .find(model, x, v, params.dt as f32, sc, slack);
         }
