@@ -25,7 +25,9 @@ use bevy_cloth::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
 use bevy_cloth::solver::guard::{
     DivergenceReason, GuardBounds, GuardError, GuardMemory, GuardPolicy, guarded_step,
 };
-use bevy_cloth::solver::{CONVERGENCE_TOLERANCE, ContactError, StepInput, StepParams, max_stretch};
+use bevy_cloth::solver::{
+    CONVERGENCE_TOLERANCE, ProjectedConvergence, StepInput, StepParams, max_stretch,
+};
 
 use crate::scenarios::ended;
 use crate::two_sheets::TwoSheets;
@@ -195,8 +197,7 @@ pub struct Stepper {
     backup: ClothState,
     memory: GuardMemory,
     motion: Vec<Vec3A>,
-    solved: Vec<Vec3A>,
-    error: ContactError,
+    convergence: ProjectedConvergence,
 }
 
 impl Stepper {
@@ -217,7 +218,8 @@ impl Stepper {
     /// ([`ClothStats::converged`](bevy_cloth::ClothStats::converged): the
     /// method's own relative error within [`CONVERGENCE_TOLERANCE`], or,
     /// when the projection moved the cloth, measured again without what
-    /// the projection undid, [`ContactError`]); `None` if not judging.
+    /// the projection undid: [`ProjectedConvergence`]); `None` if not
+    /// judging.
     pub fn step(
         &mut self,
         case: &ContactCase,
@@ -247,8 +249,7 @@ impl Stepper {
             backup,
             memory,
             motion,
-            solved,
-            error,
+            convergence,
         } = self;
         let solids = &*solids;
         let done = guarded_step(
@@ -277,11 +278,10 @@ impl Stepper {
         {
             self_contacts.resolve_after_step(model, state, backup, &params, sc);
         }
-        let own = done.report.relative_error;
-        let remeasure =
-            *judge && ContactError::applies(own, done.substeps == 1, CONVERGENCE_TOLERANCE);
-        if remeasure {
-            solved.clone_from(&state.positions);
+        if *judge {
+            let own = done.report.relative_error;
+            convergence.stepped(own, done.substeps == 1, CONVERGENCE_TOLERANCE);
+            convergence.before_projection(&state.positions);
         }
         let sweep = Sweep {
             motion,
@@ -290,14 +290,8 @@ impl Stepper {
             edges: false,
         };
         project_swept(model, state, solids, sweep, 0.0, dt);
-        let judged = if remeasure && *solved != state.positions {
-            error
-                .relative_error(model, backup, solved, &state.positions, &params)
-                .or(own)
-        } else {
-            own
-        };
-        Ok(judge.then(|| judged.is_none_or(|e| e <= CONVERGENCE_TOLERANCE)))
+        let judged = convergence.settle(model, backup, &state.positions, &params);
+        Ok(judged.map(|e| e.is_none_or(|e| e <= CONVERGENCE_TOLERANCE)))
     }
 }
 

@@ -34,7 +34,7 @@ use bevy_cloth::solver::guard::{
 };
 use bevy_cloth::solver::linear::SpringJacobian;
 use bevy_cloth::solver::{
-    CONVERGENCE_TOLERANCE, ContactError, SpringStiffness, StepInput, StepParams, energy,
+    CONVERGENCE_TOLERANCE, ProjectedConvergence, SpringStiffness, StepInput, StepParams, energy,
     max_stretch,
 };
 
@@ -367,8 +367,7 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
     let mut ws = AnyWorkspace::default();
     let mut backup = ClothState::default();
     let mut memory = GuardMemory::default();
-    let mut solved = Vec::new();
-    let mut contact_error = ContactError::default();
+    let mut convergence = ProjectedConvergence::default();
     let result = catch_unwind(AssertUnwindSafe(|| {
         for n in 0..scenario.steps {
             // A sphere moved this step moved that fast (the guard's speed
@@ -412,28 +411,26 @@ fn run_with(scenario: &Scenario, method: &AnyMethod, params: &StepParams) -> Run
                     method.step_with(input, s, &mut ws)
                 },
             );
-            // A step that would be flagged is measured again after the
-            // projection, as the plugin measures it (`ContactError`).
-            let remeasure = !scenario.contacts.is_empty()
-                && matches!(&r, Ok(done) if ContactError::applies(
+            // Judged after the projection, as the plugin judges it
+            // (`ProjectedConvergence`).
+            let mut judged = None;
+            if let Ok(done) = &r {
+                convergence.stepped(
                     done.report.relative_error,
                     done.substeps == 1,
                     CONVERGENCE_TOLERANCE,
-                ));
-            if remeasure {
-                solved.clone_from(&state.positions);
-            }
-            if r.is_ok() && !scenario.contacts.is_empty() {
-                project_shapes(model, &mut state, &scenario.contacts, 0.0, params.dt as f32);
+                );
+                if !scenario.contacts.is_empty() {
+                    convergence.before_projection(&state.positions);
+                    project_shapes(model, &mut state, &scenario.contacts, 0.0, params.dt as f32);
+                }
+                judged = convergence
+                    .settle(model, &backup, &state.positions, &step_params)
+                    .flatten();
             }
             match r {
-                Ok(mut done) => {
-                    if remeasure {
-                        done.report.relative_error = contact_error
-                            .relative_error(model, &backup, &solved, &state.positions, &step_params)
-                            .or(done.report.relative_error);
-                    }
-                    if let Some(e) = done.report.relative_error {
+                Ok(_) => {
+                    if let Some(e) = judged {
                         run.max_relative_error =
                             Some(run.max_relative_error.map_or(e, |m| m.max(e)));
                         if e > CONVERGENCE_TOLERANCE {

@@ -404,7 +404,7 @@ fn hold_to_skin(
         {
             Ok(()) => {
                 // The skin's limits are held as a collider's projection is,
-                // and measured so (see `PendingConvergence`).
+                // and measured so (see `ProjectedConvergence`).
                 cloth.convergence.before_projection(&cloth.state.positions);
                 apply_skin(
                     &cloth.model,

@@ -62,9 +62,10 @@ pub struct Cloth {
     /// sent; cleared when the method or its parameters change.
     pub(crate) convergence_reported: bool,
     /// The last step's convergence, judged in `SyncOut` once the colliders
-    /// have projected the cloth (see [`PendingConvergence`]).
+    /// have projected the cloth (see
+    /// [`ProjectedConvergence`](crate::solver::ProjectedConvergence)).
     #[reflect(ignore)]
-    pub(crate) convergence: PendingConvergence,
+    pub(crate) convergence: crate::solver::ProjectedConvergence,
     /// The pins the cloth was built with, which follow its own entity.
     #[reflect(ignore)]
     pub(crate) own_pins: Vec<u32>,
@@ -105,48 +106,6 @@ pub struct Cloth {
     /// it pushes after them
     /// ([`ClothLayers::follow`](crate::collision::self_contact::ClothLayers::follow)).
     pub(crate) held_others: bool,
-}
-
-/// A step's convergence measure, judged after the colliders' projection.
-///
-/// A step whose own [`relative_error`](crate::solver::StepReport::relative_error)
-/// exceeds the tolerance keeps where the method left the positions when the
-/// first projection runs (`solved`); if a projection then moved vertices, the
-/// error is measured again without what the projection undoes
-/// ([`ContactError`](crate::solver::ContactError)): a cloth resting on a
-/// collider is held by forces the solve does not see.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct PendingConvergence {
-    /// `Some` after a step: its own relative error, if it has one.
-    pub(crate) step: Option<Option<f32>>,
-    /// The step may be measured again: one step of the whole `dt` (no
-    /// halvings), its error above the tolerance.
-    pub(crate) remeasure: bool,
-    /// The positions before the first projection, if one ran since.
-    pub(crate) solved: Vec<Vec3A>,
-    /// Whether `solved` holds this step's positions.
-    pub(crate) kept: bool,
-    /// Scratch of the measure.
-    pub(crate) scratch: crate::solver::ContactError,
-}
-
-impl PendingConvergence {
-    /// Records a step's own measure.
-    pub(crate) fn stepped(&mut self, error: Option<f32>, single: bool, tolerance: f32) {
-        self.step = Some(error);
-        self.remeasure = crate::solver::ContactError::applies(error, single, tolerance);
-        self.kept = false;
-    }
-
-    /// Called by each projection before it moves the vertices: the first
-    /// keeps where the step left them, if the step may be measured again.
-    pub(crate) fn before_projection(&mut self, positions: &[Vec3A]) {
-        if self.remeasure && !self.kept {
-            self.solved.clear();
-            self.solved.extend_from_slice(positions);
-            self.kept = true;
-        }
-    }
 }
 
 /// Places a cloth's rest shape at its entity's global transform as soon as the

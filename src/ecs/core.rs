@@ -407,7 +407,7 @@ pub(crate) fn guard_and_measure(
     convergence.write_batch(found);
 }
 
-/// Judges the last step's convergence (see `PendingConvergence`): measured
+/// Judges the last step's convergence (see `ProjectedConvergence`): measured
 /// again after the projection if that moved vertices, then
 /// [`ClothStats::converged`] and the count of unconverged steps, and the
 /// [`ClothNotConverged`] message the first time.
@@ -419,22 +419,12 @@ fn settle_convergence(
     stats: &mut ClothStats,
     dt: f64,
 ) -> Option<ClothNotConverged> {
-    let pending = &mut cloth.convergence;
-    let mut error = pending.step.take()?;
-    if pending.remeasure && pending.kept && pending.solved != cloth.state.positions {
-        error = pending
-            .scratch
-            .relative_error(
-                &cloth.model,
-                &cloth.last_good,
-                &pending.solved,
-                &cloth.state.positions,
-                &params.step_params(dt),
-            )
-            .or(error);
-    }
-    pending.remeasure = false;
-    pending.kept = false;
+    let error = cloth.convergence.settle(
+        &cloth.model,
+        &cloth.last_good,
+        &cloth.state.positions,
+        &params.step_params(dt),
+    )?;
     stats.relative_error = error;
     stats.converged = error.is_none_or(|e| e <= guard.convergence_tolerance);
     if stats.converged {

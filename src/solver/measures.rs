@@ -215,6 +215,79 @@ impl ContactError {
     }
 }
 
+/// The plugin's convergence rule for one step across the colliders'
+/// projection after it, in one place for the plugin and the report.
+///
+/// [`stepped`](Self::stepped) records the step's own
+/// [`relative_error`](super::StepReport::relative_error) and whether it may
+/// be measured again ([`ContactError::applies`]);
+/// [`before_projection`](Self::before_projection), called by each
+/// projection before it moves the vertices, keeps where the step left them
+/// (the first only); [`settle`](Self::settle) gives the step's judged error:
+/// measured again without what the projection undid ([`ContactError`]) if a
+/// projection moved vertices, else the step's own. A cloth resting on a
+/// collider is held by forces the solve does not see.
+///
+/// Scratch is kept between steps (no allocation once sized).
+#[derive(Clone, Debug, Default)]
+pub struct ProjectedConvergence {
+    /// `Some` after a step: its own relative error, if it has one.
+    step: Option<Option<f32>>,
+    /// The step may be measured again.
+    remeasure: bool,
+    /// The positions before the first projection, if one ran since.
+    solved: Vec<Vec3A>,
+    /// Whether `solved` holds this step's positions.
+    kept: bool,
+    /// Scratch of the measure.
+    scratch: ContactError,
+}
+
+impl ProjectedConvergence {
+    /// Records a step's own relative error (`error`), whether it was one
+    /// step of the whole `dt` (`single`: no halvings by the guard), and the
+    /// tolerance it is judged against.
+    pub fn stepped(&mut self, error: Option<f32>, single: bool, tolerance: f32) {
+        self.step = Some(error);
+        self.remeasure = ContactError::applies(error, single, tolerance);
+        self.kept = false;
+    }
+
+    /// Called by each projection before it moves the vertices (at
+    /// `positions`): the first after a step that may be measured again
+    /// keeps them.
+    pub fn before_projection(&mut self, positions: &[Vec3A]) {
+        if self.remeasure && !self.kept {
+            self.solved.clear();
+            self.solved.extend_from_slice(positions);
+            self.kept = true;
+        }
+    }
+
+    /// The recorded step's judged relative error, the step having started
+    /// from `start` (velocities undamped) and the projections having left
+    /// the vertices at `projected`: `None` if no step was recorded since the
+    /// last call, `Some(None)` for a step without a measure of its own.
+    pub fn settle(
+        &mut self,
+        model: &ClothModel,
+        start: &ClothState,
+        projected: &[Vec3A],
+        params: &StepParams,
+    ) -> Option<Option<f32>> {
+        let mut error = self.step.take()?;
+        if self.remeasure && self.kept && self.solved != projected {
+            error = self
+                .scratch
+                .relative_error(model, start, &self.solved, projected, params)
+                .or(error);
+        }
+        self.remeasure = false;
+        self.kept = false;
+        Some(error)
+    }
+}
+
 /// The implicit-Euler objective whose minimiser is the next position:
 /// `Σ m/(2dt²)‖x − x̃‖² + Σ_springs ½k(l − L)² − Σ m g·x`, in `f64`.
 /// Its gradient is [`gradient`].

@@ -57,8 +57,8 @@ pub mod xpbd;
 pub use engine::kernels::PARALLEL_MIN;
 pub use engine::simd::Simd;
 pub use measures::{
-    ContactError, ConvergenceSums, Measured, energy, gradient, max_stretch, measure, objective,
-    step_error,
+    ContactError, ConvergenceSums, Measured, ProjectedConvergence, energy, gradient, max_stretch,
+    measure, objective, step_error,
 };
 pub use method::{LAB_ITERATIONS, LAB_RHO, Method, SkinInput, StepInput};
 pub use params::{

@@ -459,3 +459,46 @@ fn contact_error_counts_only_what_the_projection_does_not_undo() {
             .is_none()
     );
 }
+
+#[test]
+fn projected_convergence_judges_a_step_across_its_projection_once() {
+    use crate::solver::{CONVERGENCE_TOLERANCE, ProjectedConvergence};
+    // The floor scene above: a step that left the cloth where it was is a
+    // whole step's fall short of the exact step.
+    let model = ClothBuilder::lab().with_pins([]).build().unwrap();
+    let start = ClothState::at_rest(&model, &Affine3A::IDENTITY);
+    let params = StepParams::LAB;
+    let fall = Vec3A::from(params.gravity) * (params.dt * params.dt) as f32;
+    let unmoved = start.positions.clone();
+    let fallen: Vec<Vec3A> = unmoved.iter().map(|&x| x + 0.5 * fall).collect();
+    let tolerance = CONVERGENCE_TOLERANCE;
+    let flagged = Some(10.0 * tolerance);
+    let mut rule = ProjectedConvergence::default();
+    // No step recorded: nothing to judge.
+    assert_eq!(rule.settle(&model, &start, &unmoved, &params), None);
+    // A flagged step that fell halfway into the floor, put back by the
+    // projection: measured again, within the tolerance.
+    rule.stepped(flagged, true, tolerance);
+    rule.before_projection(&fallen);
+    // A second projection does not replace where the step left it.
+    rule.before_projection(&unmoved);
+    let judged = rule.settle(&model, &start, &unmoved, &params).unwrap();
+    assert!(judged.is_some_and(|e| e < 1e-3), "{judged:?}");
+    // Judged once: the next call has no step.
+    assert_eq!(rule.settle(&model, &start, &unmoved, &params), None);
+    // The same step not moved by the projection keeps its own error.
+    rule.stepped(flagged, true, tolerance);
+    rule.before_projection(&fallen);
+    let kept = rule.settle(&model, &start, &fallen, &params).unwrap();
+    assert_eq!(kept, flagged);
+    // A halved step, or one within the tolerance, is never measured again.
+    for (error, single) in [
+        (flagged, false),
+        (Some(0.5 * tolerance), true),
+        (None, true),
+    ] {
+        rule.stepped(error, single, tolerance);
+        rule.before_projection(&fallen);
+        assert_eq!(rule.settle(&model, &start, &unmoved, &params), Some(error));
+    }
+}
