@@ -9,8 +9,8 @@
 //! with `x̃ = x + dt·damping·v` (the lab's prediction), starting from
 //! `x = x̃`. A cloth with a [`SelfCollision`](crate::SelfCollision) adds its
 //! pairs' terms `½c(min − l)²`, `l` the pair's distance along its direction
-//! at the step's start, at the same `c` (only their diagonal blocks enter
-//! the Hessian: the pairs change every step and are not in its pattern). The contact terms are the penalty spheres and, with
+//! at the step's start, at the same `c` (their Hessian blocks join the
+//! springs' pattern, which is made again when a pair appears that it lacks). The contact terms are the penalty spheres and, with
 //! [`ExactSolver::contacts`] (the default), the solids the plugin projects
 //! after the step ([`StepInput::contacts`]) at a stiffness `c` of
 //! [`ExactSolver::CONTACT_STIFFNESS`] times the heaviest vertex's `m/dt²`.
@@ -50,7 +50,9 @@ use bevy::math::{DMat3, DVec3, Vec3A};
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use super::linear::{LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian};
+use super::linear::{
+    LinearImplicitSolver, LinearSystem, PenaltyJacobian, SpringJacobian, normalise,
+};
 use super::params::check_budget;
 use super::{
     ConvergenceSums, Method, ParamError, SolveError, StepError, StepInput, StepParams, StepReport,
@@ -197,8 +199,17 @@ impl Method for ExactSolver {
         }
         let penalties = core::mem::take(&mut ws.penalties);
         let spheres = &penalties[..];
-        if ws.system.as_ref().is_none_or(|s| !s.matches(model)) {
-            ws.system = Some(LinearSystem::new(model));
+        // The pairs' terms couple vertices no spring joins: the pattern
+        // holds their blocks too, made again (with its symbolic analysis)
+        // when a pair appears that it lacks.
+        ws.pairs.couplings(&mut ws.couplings);
+        normalise(&mut ws.couplings);
+        if ws
+            .system
+            .as_ref()
+            .is_none_or(|s| !s.covers(model, &ws.couplings))
+        {
+            ws.system = Some(LinearSystem::with_couplings(model, ws.couplings.clone()));
             ws.cholesky = SparseCholesky::for_block_hessian();
         }
         let system = ws.system.as_mut().expect("just built");
@@ -289,7 +300,9 @@ impl Method for ExactSolver {
                 for f in friction.0 {
                     system.add_to_diagonal(f.vertex, &(f.hessian(ws.x[f.vertex], eps) * h2));
                 }
-                pairs.diagonal(&ws.x, |i, block| system.add_to_diagonal(i, &(block * h2)));
+                pairs.hessian(&ws.x, |i, j, block| {
+                    system.add_block_at(i, j, &(block * h2));
+                });
                 for (d, g) in ws.direction.iter_mut().zip(&ws.gradient) {
                     *d = -h2 * g;
                 }
@@ -478,6 +491,8 @@ pub struct ExactWorkspace {
     ended_in: (Vec<(u32, u32, f64, DVec3)>, usize),
     /// Self-collision's pairs as terms of the objective.
     pairs: PairTerms,
+    /// Scratch: the vertex pairs their terms couple.
+    couplings: Vec<(u32, u32)>,
 }
 
 /// The speed below which friction holds a vertex, per metre of cloth size

@@ -36,8 +36,39 @@ pub struct LinearSystem {
     diag: Vec<Slot>,
     /// Per spring: blocks (a,a), (b,b), (a,b), (b,a).
     springs: Vec<[Slot; 4]>,
+    /// The block rows of each block column (sorted) and where each
+    /// column's start in them: for [`add_block_at`](Self::add_block_at).
+    blk_ptr: Vec<usize>,
+    blk_rows: Vec<u32>,
+    /// The vertex pairs coupled beyond the springs (each `(i, j)` with
+    /// `i < j`, sorted): see [`with_couplings`](Self::with_couplings).
+    couplings: Vec<(u32, u32)>,
     values: Vec<f64>,
     rhs: Vec<f64>,
+}
+
+/// Where block `(r, c)` of unknowns' blocks lives, given each block
+/// column's sorted block rows (`None`: not in the pattern).
+fn slot_of(blk_ptr: &[usize], blk_rows: &[u32], r: u32, c: u32) -> Option<Slot> {
+    let c = c as usize;
+    let rows = &blk_rows[blk_ptr[c]..blk_ptr[c + 1]];
+    let k = rows.binary_search(&r).ok()?;
+    Some(Slot {
+        base: (9 * blk_ptr[c] + 3 * k) as u32,
+        stride: (3 * rows.len()) as u32,
+    })
+}
+
+/// Puts vertex pairs in the form [`LinearSystem::with_couplings`] keeps:
+/// each `(i, j)` as `i < j`, sorted, without repeats or a vertex paired with
+/// itself.
+pub(crate) fn normalise(couplings: &mut Vec<(u32, u32)>) {
+    for c in couplings.iter_mut() {
+        *c = (c.0.min(c.1), c.0.max(c.1));
+    }
+    couplings.retain(|&(i, j)| i != j);
+    couplings.sort_unstable();
+    couplings.dedup();
 }
 
 pub(super) fn pattern_key(model: &ClothModel) -> (usize, Vec<u32>) {
@@ -50,6 +81,16 @@ pub(super) fn pattern_key(model: &ClothModel) -> (usize, Vec<u32>) {
 impl LinearSystem {
     /// Builds the sparsity pattern of `model`'s system (allocates).
     pub fn new(model: &ClothModel) -> Self {
+        Self::with_couplings(model, Vec::new())
+    }
+
+    /// Builds the sparsity pattern of `model`'s system with blocks between
+    /// the vertex pairs `couplings` beyond its springs' (allocates): the
+    /// terms of a step's self-collision pairs couple vertices no spring
+    /// joins. `couplings` is sorted and its repeats dropped; a pair with a
+    /// pinned end adds nothing.
+    pub(crate) fn with_couplings(model: &ClothModel, mut couplings: Vec<(u32, u32)>) -> Self {
+        normalise(&mut couplings);
         let topo = model.topology();
         let n = topo.vertex_count();
         let mut dof_of = vec![FIXED; n];
@@ -61,6 +102,15 @@ impl LinearSystem {
             }
         }
         let dofs = dofs as usize;
+        // Each vertex's partners beyond its springs, as (vertex, partner)
+        // sorted by vertex.
+        let mut beyond: Vec<(u32, u32)> = couplings
+            .iter()
+            .flat_map(|&(i, j)| [(i, j), (j, i)])
+            .filter(|&(i, j)| (i as usize) < n && (j as usize) < n)
+            .collect();
+        beyond.sort_unstable();
+        let mut beyond = beyond.as_slice();
         // Block rows of each block column, sorted.
         let mut blk_ptr = vec![0usize; dofs + 1];
         let mut blk_rows: Vec<u32> = Vec::new();
@@ -74,6 +124,15 @@ impl LinearSystem {
             blk_rows.push(di);
             for inc in topo.adjacency().of(i) {
                 let dj = dof_of[inc.other as usize];
+                if dj != FIXED {
+                    blk_rows.push(dj);
+                }
+            }
+            let own = beyond.partition_point(|&(v, _)| v as usize <= i);
+            let (mine, rest) = beyond.split_at(own);
+            beyond = rest;
+            for &(_, j) in mine.iter().filter(|&&(v, _)| v as usize == i) {
+                let dj = dof_of[j as usize];
                 if dj != FIXED {
                     blk_rows.push(dj);
                 }
@@ -103,15 +162,7 @@ impl LinearSystem {
             }
         }
         col_ptr.push(row_idx.len());
-        let slot = |r: u32, c: u32| -> Slot {
-            let (r, c) = (r as usize, c as usize);
-            let rows = &blk_rows[blk_ptr[c]..blk_ptr[c + 1]];
-            let k = rows.binary_search(&(r as u32)).expect("block in pattern");
-            Slot {
-                base: (9 * blk_ptr[c] + 3 * k) as u32,
-                stride: (3 * rows.len()) as u32,
-            }
-        };
+        let slot = |r: u32, c: u32| slot_of(&blk_ptr, &blk_rows, r, c).expect("block in pattern");
         let diag = (0..dofs as u32).map(|c| slot(c, c)).collect();
         let springs = topo
             .springs()
@@ -147,7 +198,36 @@ impl LinearSystem {
             springs,
             values: vec![0.0; nnz],
             rhs: vec![0.0; 3 * dofs],
+            blk_ptr,
+            blk_rows,
+            couplings,
         }
+    }
+
+    /// True if this system's pattern is `model`'s and holds the blocks of
+    /// every pair of `couplings` (sorted, without repeats: see
+    /// [`normalise`]); it may hold more.
+    pub(crate) fn covers(&self, model: &ClothModel, couplings: &[(u32, u32)]) -> bool {
+        self.matches(model)
+            && couplings
+                .iter()
+                .all(|c| self.couplings.binary_search(c).is_ok())
+    }
+
+    /// Adds `block` to `A`'s block `(i, j)` of vertices `i` and `j` (the
+    /// diagonal block for `i == j`; nothing for a pinned vertex). The block
+    /// must be in the pattern: a spring's, or one of the
+    /// [couplings](Self::with_couplings).
+    pub(crate) fn add_block_at(&mut self, i: usize, j: usize, block: &DMat3) {
+        let (di, dj) = (self.dof_of[i], self.dof_of[j]);
+        if di == FIXED || dj == FIXED {
+            return;
+        }
+        let Some(slot) = slot_of(&self.blk_ptr, &self.blk_rows, di, dj) else {
+            debug_assert!(false, "block ({i}, {j}) is not in the pattern");
+            return;
+        };
+        self.add_block(slot, block, 1.0);
     }
 
     /// Writes `A`'s diagonal into `out` (one entry per unknown).

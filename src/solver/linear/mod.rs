@@ -38,6 +38,7 @@ use bevy::reflect::std_traits::ReflectDefault;
 use faer::dyn_stack::MemBuffer;
 
 pub use assembly::LinearSystem;
+pub(crate) use assembly::normalise;
 use assembly::pattern_key;
 
 use super::params::check_budget;
