@@ -99,7 +99,8 @@ pub(crate) fn contact_section(
          any step; the **thin** fold is the same at 0.3 of the edges thick (layers as far \
          apart as the default's), where vertex pairs alone let layers through and \
          vertex–triangle and edge–edge pairs keep them apart, the first also in the objective \
-         of `pd`, `pd-anderson`, `newton` and `exact`; the **long** fold is the same at {4}² for {5} s (issue N's \
+         of `pd`, `pd-anderson`, `newton` and `exact`, the second also in `newton`'s and \
+         `exact`'s; the **long** fold is the same at {4}² for {5} s (issue N's \
          target). **Two sheets**: two {6}² sheets of 1 m dropped from 0.65 and 0.9 m (the \
          upper turned by 20°) onto a 30 cm ball on the ground, {7} s, stepped through the \
          plugin (an `App`: each sheet's step sees the other's vertices, and the pass between \

@@ -48,8 +48,11 @@
 //! other side) and not slid apart across it, they are pushed back apart,
 //! each end taking its share by its weight in the closest point and its
 //! inverse mass, with friction, in the same passes as the vertex–triangle
-//! pairs (after the step of `pd`, `pd-anderson`, `newton` and `exact`, not
-//! in their objective: as its terms, `pd-anderson` diverged). Half the
+//! pairs (after the step of `pd` and `pd-anderson`, not in their
+//! objective: as its terms without their blocks in the global matrix,
+//! `pd-anderson` diverged; `newton` and `exact` also take them into their
+//! objective as half-space terms, their Hessian blocks whole, and push them
+//! after the step too). Half the
 //! thickness, not all of it: the
 //! vertex–triangle pairs hold resting layers a thickness apart, and edges
 //! crossing each other there would push in every pass. Two edges a row

@@ -14,7 +14,7 @@ use super::{Pass, UNTANGLE};
 /// closest points of two edges may lie and the pair still push: beyond it
 /// the edges have slid apart (an end of one past the other), as a vertex
 /// off its triangle no longer pushes.
-const ASIDE: f32 = 1.0;
+pub(super) const ASIDE: f32 = 1.0;
 
 /// The least squared sine of the angle between two edges that makes them
 /// a pair (about 10°): nearly parallel edges cannot pass through each

@@ -8,7 +8,8 @@
 //! instead of only in the pushes after their step (which a stiff method's
 //! springs undo and fight: the stability map's folded sheet went through
 //! itself, 377 edges with `newton`, stretched past 100 %). A thin
-//! setting's vertex–triangle pairs are terms too ([`FaceTerm`]).
+//! setting's vertex–triangle pairs are terms too, and for Newton's methods
+//! its edge–edge pairs ([`SideTerm`]).
 
 use bevy::math::{DMat3, DVec3, Vec3A};
 
@@ -63,26 +64,35 @@ pub(crate) struct PairTerm {
     pub normal: Option<DVec3>,
 }
 
-/// A vertex–triangle pair of a thin setting (see the [parent
-/// module](super), "Thin cloth") as a term of the objective: the vertex's
-/// height `C = (x_v − Σ wₖ xₖ)·n` over the triangle's point under it at the
-/// step's start (barycentric weights `w` and side-signed unit normal `n`,
-/// both frozen there) costs `½c(min − C)²` below `min`: a half-space in
-/// the positions, convex and smooth, its Hessian exactly `c·gᵀg`. (Cut off
-/// where the vertex is more than twice `min` from that point, as a vertex
-/// pair is, `exact` failed to converge on a 32² sheet folded at 0.3 of its
-/// edges.)
+/// A vertex–triangle or edge–edge pair of a thin setting (see the [parent
+/// module](super), "Thin cloth") as a term of the objective: the
+/// separation `d = Σ wₖxₖ` of its four ends (a vertex over the point under
+/// it of a triangle: weights 1 and minus the barycentric ones; two edges:
+/// the second's closest point less the first's), with weights and a
+/// side-signed unit normal `n` frozen at the step's start, has height
+/// `C = d·n`, which costs `½c(min − C)²` below `min`: a half-space in the
+/// positions, convex and smooth, its Hessian exactly `c·ggᵀ`, `gₖ = wₖn`.
+/// (Cut off where the vertex is more than twice `min` from that point, as a
+/// vertex pair is, `exact` failed to converge on a 32² sheet folded at 0.3
+/// of its edges.) An edge pair also stops pushing where the edges went
+/// round each other (further below than the step could bring them, or slid
+/// apart across the normal), as the pass after the step does.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct FaceTerm {
-    /// The vertex.
-    vertex: usize,
-    /// The triangle's corners and their barycentric weights.
-    corners: [usize; 3],
-    weights: [f64; 3],
+pub(crate) struct SideTerm {
+    /// The four ends.
+    ends: [usize; 4],
+    /// Their weights in the separation.
+    weights: [f64; 4],
     /// The side-signed unit normal at the step's start.
     normal: DVec3,
     /// The least height, as [`PairTerm::min`].
     min: f64,
+    /// The height below which the pair went round, not through (−∞ for a
+    /// vertex over a triangle).
+    floor: f64,
+    /// The most the separation may lie across the normal (∞ for a vertex
+    /// over a triangle).
+    aside: f64,
 }
 
 /// The step's pair terms at stiffness `c` (a penalty's, per metre), and
@@ -91,8 +101,9 @@ pub(crate) struct FaceTerm {
 pub(crate) struct PairTerms {
     /// The terms.
     pub terms: Vec<PairTerm>,
-    /// A thin setting's vertex–triangle terms.
-    faces: Vec<FaceTerm>,
+    /// A thin setting's vertex–triangle terms, and (for Newton's methods,
+    /// [`update`](Self::update)'s `edges`) its edge–edge ones.
+    sides: Vec<SideTerm>,
     /// Their stiffness.
     pub c: f64,
     /// The pair search, its list kept from step to step while the cloth
@@ -114,8 +125,11 @@ impl PairTerm {
 impl PairTerms {
     /// The step's terms at stiffness `c` for `model` at `state`, stepped
     /// by `dt`: the pairs [`SelfContacts::find_or_keep`] finds, or none
-    /// without self-collision, and a thin setting's vertex–triangle pairs
-    /// whose vertex is over its triangle at the step's start.
+    /// without self-collision, a thin setting's vertex–triangle pairs
+    /// whose vertex is over its triangle at the step's start, and with
+    /// `edges` its edge–edge pairs (Newton's methods, whose Hessian takes
+    /// their blocks; projective dynamics' global matrix does not, and they
+    /// run after its step).
     pub(crate) fn update(
         &mut self,
         model: &ClothModel,
@@ -123,17 +137,18 @@ impl PairTerms {
         dt: f64,
         sc: Option<SelfCollisionInput<'_>>,
         c: f64,
+        edges: bool,
     ) {
         self.c = c;
         self.terms.clear();
-        self.faces.clear();
+        self.sides.clear();
         let Some(sc) = sc else {
             return;
         };
         let contacts = &mut self.search;
         let (x, v) = (&state.positions, &state.velocities);
         contacts.find_or_keep(model, x, v, dt as f32, sc, 0.0, true);
-        self.faces
+        self.sides
             .extend(contacts.faces.pairs.iter().filter_map(|p| {
                 let i = p.vertex as usize;
                 let corners = p.triangle.map(|j| j as usize);
@@ -144,14 +159,35 @@ impl PairTerms {
                     return None;
                 }
                 let (_, normal) = super::faces::plane_distance(xa, xb, xc, xi)?;
-                Some(FaceTerm {
-                    vertex: i,
-                    corners,
-                    weights: weights.map(f64::from),
+                let [a, b, c] = corners;
+                let [wa, wb, wc] = weights.map(|w| -f64::from(w));
+                Some(SideTerm {
+                    ends: [i, a, b, c],
+                    weights: [1.0, wa, wb, wc],
                     normal: (normal * p.side).as_dvec3(),
                     min: f64::from(p.min.min(p.overlap + UNTANGLE * p.min)),
+                    floor: f64::NEG_INFINITY,
+                    aside: f64::INFINITY,
                 })
             }));
+        if edges {
+            self.sides
+                .extend(contacts.edges.pairs.iter().filter_map(|p| {
+                    let ends = p.ends.map(|j| j as usize);
+                    let at = ends.map(|j| x.get(j).copied());
+                    let at = [at[0]?, at[1]?, at[2]?, at[3]?];
+                    let (_, params) = super::edges::between(at);
+                    let min = p.min.min(p.overlap + UNTANGLE * p.min);
+                    Some(SideTerm {
+                        ends,
+                        weights: super::edges::weights(params).map(f64::from),
+                        normal: p.normal.as_dvec3(),
+                        min: f64::from(min),
+                        floor: -f64::from(p.reach),
+                        aside: f64::from(super::edges::ASIDE * min),
+                    })
+                }));
+        }
         let own = contacts.own;
         self.terms.extend(contacts.pairs.iter().map(|p| {
             let (a, b) = (p.a as usize, p.b as usize);
@@ -214,17 +250,21 @@ impl PairTerms {
         })
     }
 
-    /// Each pushing face term at `x`: the term and its height `C`.
-    fn faces_pushing<'s, P: Position + 's>(
+    /// Each pushing side term at `x`: the term and its height `C`.
+    fn sides_pushing<'s, P: Position + 's>(
         &'s self,
         x: &'s [P],
-    ) -> impl Iterator<Item = (&'s FaceTerm, f64)> + 's {
-        self.faces.iter().filter_map(move |t| {
-            let [a, b, c] = t.corners.map(|k| x.get(k).map(|p| p.f64()));
-            let foot = a? * t.weights[0] + b? * t.weights[1] + c? * t.weights[2];
-            let d = x.get(t.vertex)?.f64() - foot;
+    ) -> impl Iterator<Item = (&'s SideTerm, f64)> + 's {
+        self.sides.iter().filter_map(move |t| {
+            let mut d = DVec3::ZERO;
+            for (&k, &w) in t.ends.iter().zip(&t.weights) {
+                d += x.get(k)?.f64() * w;
+            }
             let height = d.dot(t.normal);
-            (height < t.min).then_some((t, height))
+            let pushes = height < t.min
+                && height >= t.floor
+                && (d - height * t.normal).length_squared() <= t.aside * t.aside;
+            pushes.then_some((t, height))
         })
     }
 
@@ -234,7 +274,7 @@ impl PairTerms {
             .map(|(.., l, min)| 0.5 * self.c * (min - l) * (min - l))
             .sum::<f64>()
             + self
-                .faces_pushing(x)
+                .sides_pushing(x)
                 .map(|(t, h)| 0.5 * self.c * (t.min - h) * (t.min - h))
                 .sum::<f64>()
     }
@@ -248,17 +288,16 @@ impl PairTerms {
                 add(b, g);
             }
         }
-        for (t, h) in self.faces_pushing(x) {
+        for (t, h) in self.sides_pushing(x) {
             let g = t.normal * (self.c * (t.min - h));
-            add(t.vertex, -g);
-            for (&k, &w) in t.corners.iter().zip(&t.weights) {
-                add(k, g * w);
+            for (&k, &w) in t.ends.iter().zip(&t.weights) {
+                add(k, -g * w);
             }
         }
     }
 
     /// The pairs of the cloth's own vertices their terms couple (a vertex
-    /// pair's two ends; a face term's vertex and corners), into `out`
+    /// pair's two ends; a side term's four), into `out`
     /// (cleared): the blocks beyond the springs' that their Hessian
     /// ([`hessian`](Self::hessian)) fills.
     pub(crate) fn couplings(&self, out: &mut Vec<(u32, u32)>) {
@@ -268,9 +307,8 @@ impl PairTerms {
                 .iter()
                 .filter_map(|t| Some((t.a as u32, t.own_b()? as u32))),
         );
-        for t in &self.faces {
-            let [a, b, c] = t.corners.map(|k| k as u32);
-            let v = t.vertex as u32;
+        for t in &self.sides {
+            let [v, a, b, c] = t.ends.map(|k| k as u32);
             out.extend([(v, a), (v, b), (v, c), (a, b), (a, c), (b, c)]);
         }
     }
@@ -281,8 +319,8 @@ impl PairTerms {
     /// constraint's gradient: for a vertex pair `c·nnᵀ` on both ends'
     /// diagonals and `−c·nnᵀ` across (for a pair that started on one point,
     /// its negative part across the direction dropped: positive
-    /// semi-definite); for a face term `wₖwₗ·c·nnᵀ` between the vertex
-    /// (`w = −1`) and the corners. With the blocks across, Newton's
+    /// semi-definite); for a side term `wₖwₗ·c·nnᵀ` between its ends `k`
+    /// and `l`. With the blocks across, Newton's
     /// direction moves a pair's two ends together freely (with only the
     /// diagonal ones it saw each end held by the other, `2c` where the term
     /// has none, and crawled: `exact` stopped at its 100 iterations in 7 %
@@ -298,17 +336,11 @@ impl PairTerms {
                 add(b, a, -block);
             }
         }
-        for (t, _) in self.faces_pushing(x) {
+        for (t, _) in self.sides_pushing(x) {
             let n = t.normal;
             let block = DMat3::from_cols(n * n.x, n * n.y, n * n.z) * self.c;
-            let ends = [
-                (t.vertex, -1.0),
-                (t.corners[0], t.weights[0]),
-                (t.corners[1], t.weights[1]),
-                (t.corners[2], t.weights[2]),
-            ];
-            for &(i, wi) in &ends {
-                for &(j, wj) in &ends {
+            for (&i, &wi) in t.ends.iter().zip(&t.weights) {
+                for (&j, &wj) in t.ends.iter().zip(&t.weights) {
                     add(i, j, block * (wi * wj));
                 }
             }
@@ -455,18 +487,64 @@ mod tests {
         t.hessian(&apart, |_, _, _| panic!("an apart pair has a Hessian"));
     }
 
+    /// An edge pair's term: two crossing edges, the second above the
+    /// first at the step's start (weights at their closest points, the
+    /// middles): its gradient is its energy's and its Hessian the
+    /// gradient's derivative while the second is below `min` over the
+    /// first; it pushes nothing where the second went further below than
+    /// the step could bring it (round the first, not through) or slid off
+    /// across the normal.
+    #[test]
+    fn an_edge_pairs_term_is_a_half_space_cut_off_where_the_edges_went_round() {
+        let t = PairTerms {
+            sides: vec![SideTerm {
+                ends: [0, 1, 2, 3],
+                weights: [-0.5, -0.5, 0.5, 0.5],
+                normal: DVec3::Z,
+                min: 0.1,
+                floor: -0.2,
+                aside: 0.1,
+            }],
+            c: 7.0,
+            ..PairTerms::default()
+        };
+        let at = |h: f64, across: f64| {
+            [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.5 + across, -0.5, h),
+                DVec3::new(0.5 + across, 0.5, h),
+            ]
+        };
+        let x = at(0.03, 0.0);
+        assert!((t.energy(&x) - 0.5 * 7.0 * 0.07 * 0.07).abs() < 1e-12);
+        let mut g = [DVec3::ZERO; 4];
+        t.gradient(&x, |i, v| g[i] += v);
+        // A descent lifts the second edge and lowers the first.
+        assert!(g[2].z < 0.0 && g[0].z > 0.0, "{g:?}");
+        assert_gradient_is_energys(&t, &x, &g);
+        assert_hessian_is_gradients(&t, &x);
+        // Through within the step: still pushed back up.
+        assert!(t.energy(&at(-0.1, 0.0)) > 0.0);
+        for (h, across) in [(-0.3, 0.0), (0.03, 0.2), (0.15, 0.0)] {
+            assert_eq!(t.energy(&at(h, across)), 0.0, "{h} {across}");
+            t.hessian(&at(h, across), |_, _, _| panic!("pushed at {h} {across}"));
+        }
+    }
+
     /// A face term's gradient is its energy's, its diagonal blocks are
     /// `c·gₖ²·nnᵀ`, and a vertex at least `min` over its triangle costs
     /// nothing.
     #[test]
     fn a_face_terms_gradient_is_its_energys() {
         let t = PairTerms {
-            faces: vec![FaceTerm {
-                vertex: 3,
-                corners: [0, 1, 2],
-                weights: [0.2, 0.5, 0.3],
+            sides: vec![SideTerm {
+                ends: [3, 0, 1, 2],
+                weights: [1.0, -0.2, -0.5, -0.3],
                 normal: DVec3::Y,
                 min: 0.1,
+                floor: f64::NEG_INFINITY,
+                aside: f64::INFINITY,
             }],
             c: 5.0,
             ..PairTerms::default()

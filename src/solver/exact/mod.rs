@@ -185,7 +185,8 @@ impl Method for ExactSolver {
         // Self-collision's pairs as terms of the objective (the plugin's
         // pass after the step then has little left to move).
         let c = contact_stiffness;
-        ws.pairs.update(model, state, params.dt, self_collision, c);
+        ws.pairs
+            .update(model, state, params.dt, self_collision, c, true);
         // The penalty spheres, and the contacts as penalties.
         ws.penalties.clear();
         ws.penalties.extend_from_slice(spheres);

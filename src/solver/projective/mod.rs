@@ -554,7 +554,8 @@ impl Method for ProjectiveSolver {
         // Self-collision's pairs as terms of the objective (the plugin's
         // pass after the step then has less left to move).
         let c = PD_PAIR_STIFFNESS * f64::from(heaviest) / (params.dt * params.dt);
-        ws.pairs.update(model, state, params.dt, self_collision, c);
+        ws.pairs
+            .update(model, state, params.dt, self_collision, c, false);
         // The penalty spheres, and the contacts as penalties.
         let mut penalties = core::mem::take(&mut ws.penalties);
         penalties.clear();
