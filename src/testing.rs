@@ -22,6 +22,55 @@ pub(crate) fn noise(seed: &mut u64) -> Vec3A {
     Vec3A::new(next(), next(), next())
 }
 
+/// Two cotton layers of `n²` vertices in one cloth, `side` metres
+/// across, the second `gap` metres above the first: vertices `0..n²` are
+/// the lower layer's.
+pub(crate) fn two_layers(n: u32, side: f32, gap: f32) -> ClothModel {
+    use crate::model::{ClothBuilder, ClothMaterial};
+    let h = side / (n - 1) as f32;
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for layer in 0..2u32 {
+        let base = layer * n * n;
+        for i in 0..n {
+            for j in 0..n {
+                let at = bevy::math::Vec3::new(j as f32 * h, gap * layer as f32, i as f32 * h);
+                positions.push(at);
+            }
+        }
+        for i in 0..n - 1 {
+            for j in 0..n - 1 {
+                let a = base + i * n + j;
+                indices.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
+            }
+        }
+    }
+    ClothBuilder::from_triangles(positions, indices)
+        .with_material(ClothMaterial::COTTON)
+        .build()
+        .expect("a valid two-layer cloth")
+}
+
+/// One step's input of `model` under `params` with self-collision `sc` (the
+/// cloth alone) and nothing else.
+pub(crate) fn self_colliding<'a>(
+    model: &'a ClothModel,
+    params: &'a StepParams,
+    sc: crate::collision::SelfCollision,
+) -> crate::solver::StepInput<'a> {
+    crate::solver::StepInput {
+        model,
+        params,
+        spheres: &[],
+        contacts: &[],
+        contact_motion: &[],
+        skin: None,
+        self_collision: Some(crate::collision::self_contact::SelfCollisionInput::alone(
+            sc,
+        )),
+    }
+}
+
 /// `model` from rest after `steps` steps of `method` (a fresh workspace),
 /// with `spheres` acting inside each step.
 pub(crate) fn run_from_rest<M: Method>(

@@ -10,32 +10,12 @@ use crate::collision::self_contact::{
 };
 use crate::model::{ClothBuilder, ClothMaterial, ClothModel, ClothState};
 use crate::solver::xpbd::{XpbdSolver, XpbdWorkspace};
-use crate::solver::{Method, StepInput, StepParams};
+use crate::solver::{Method, StepParams};
 
 /// Two 1 m layers of `n²` cotton in one cloth, built 20 cm apart (the
 /// second above the first).
 fn two_layers(n: u32) -> ClothModel {
-    let mut positions = Vec::new();
-    let mut indices = Vec::new();
-    for layer in 0..2u32 {
-        let base = layer * n * n;
-        for i in 0..n {
-            for j in 0..n {
-                let h = 1.0 / (n - 1) as f32;
-                positions.push(Vec3::new(j as f32 * h, 0.2 * layer as f32, i as f32 * h));
-            }
-        }
-        for i in 0..n - 1 {
-            for j in 0..n - 1 {
-                let a = base + i * n + j;
-                indices.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
-            }
-        }
-    }
-    ClothBuilder::from_triangles(positions, indices)
-        .with_material(ClothMaterial::COTTON)
-        .build()
-        .unwrap()
+    crate::testing::two_layers(n, 1.0, 0.2)
 }
 
 /// `stiff` with `sc`, no gravity, one 60 Hz step of `model` at `state`.
@@ -46,15 +26,7 @@ fn step(model: &ClothModel, state: &mut ClothState, sc: SelfCollision, ws: &mut 
         gravity: Vec3::ZERO,
         ..StepParams::LAB
     };
-    let input = StepInput {
-        model,
-        params: &params,
-        spheres: &[],
-        contacts: &[],
-        contact_motion: &[],
-        skin: None,
-        self_collision: Some(SelfCollisionInput::alone(sc)),
-    };
+    let input = crate::testing::self_colliding(model, &params, sc);
     XpbdSolver::STIFF.step_with(input, state, ws).unwrap();
 }
 

@@ -454,35 +454,9 @@ fn a_step_whose_hessian_never_factorises_is_a_typed_solve_failure_and_leaves_the
 #[test]
 fn newton_converges_on_pairs_of_a_cloths_own_layers_in_few_iterations() {
     use crate::collision::SelfCollision;
-    use crate::collision::self_contact::SelfCollisionInput;
     use crate::model::ClothMaterial;
     let n = 10u32;
-    let side = 0.5;
-    let h = side / (n - 1) as f32;
-    let mut positions = Vec::new();
-    let mut indices = Vec::new();
-    for layer in 0..2u32 {
-        let base = layer * n * n;
-        for i in 0..n {
-            for j in 0..n {
-                positions.push(bevy::math::Vec3::new(
-                    j as f32 * h,
-                    2.0 * h * layer as f32,
-                    i as f32 * h,
-                ));
-            }
-        }
-        for i in 0..n - 1 {
-            for j in 0..n - 1 {
-                let a = base + i * n + j;
-                indices.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
-            }
-        }
-    }
-    let model = ClothBuilder::from_triangles(positions, indices)
-        .with_material(ClothMaterial::COTTON)
-        .build()
-        .unwrap();
+    let model = crate::testing::two_layers(n, 0.5, 1.0 / 9.0);
     let upper = (n * n) as usize;
     let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);
     for v in &mut state.velocities[upper..] {
@@ -498,15 +472,7 @@ fn newton_converges_on_pairs_of_a_cloths_own_layers_in_few_iterations() {
     let mut ws = ExactWorkspace::default();
     let mut most = 0;
     for step in 0..30 {
-        let input = StepInput {
-            model: &model,
-            params: &params,
-            spheres: &[],
-            contacts: &[],
-            contact_motion: &[],
-            skin: None,
-            self_collision: Some(SelfCollisionInput::alone(sc)),
-        };
+        let input = crate::testing::self_colliding(&model, &params, sc);
         let done = ExactSolver::REFERENCE
             .step_with(input, &mut state, &mut ws)
             .unwrap();
