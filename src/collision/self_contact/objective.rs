@@ -124,7 +124,9 @@ impl PairTerm {
 
 impl PairTerms {
     /// The step's terms at stiffness `c` for `model` at `state`, stepped
-    /// by `dt`: the pairs [`SelfContacts::find_or_keep`] finds, or none
+    /// by `dt`: the pairs [`SelfContacts::find_or_keep`] finds (each swept
+    /// box grown by `slack`, m, for what the step's forces add to the
+    /// velocities' path), or none
     /// without self-collision, a thin setting's vertex–triangle pairs
     /// whose vertex is over its triangle at the step's start, and with
     /// `edges` its edge–edge pairs (Newton's methods, whose Hessian takes
@@ -134,7 +136,7 @@ impl PairTerms {
         &mut self,
         model: &ClothModel,
         state: &ClothState,
-        dt: f64,
+        (dt, slack): (f64, f32),
         sc: Option<SelfCollisionInput<'_>>,
         c: f64,
         edges: bool,
@@ -147,7 +149,7 @@ impl PairTerms {
         };
         let contacts = &mut self.search;
         let (x, v) = (&state.positions, &state.velocities);
-        contacts.find_or_keep(model, x, v, dt as f32, sc, 0.0, true);
+        contacts.find_or_keep(model, x, v, dt as f32, sc, slack, true);
         self.sides
             .extend(contacts.faces.pairs.iter().filter_map(|p| {
                 let i = p.vertex as usize;
