@@ -121,6 +121,14 @@ impl StepParams {
         collider_speed: 0.0,
     };
 
+    /// How far gravity alone takes a vertex within the step, `|g|·dt²`: the
+    /// slack by which self-collision's search grows each vertex's swept box,
+    /// so that the pairs the step's forces (not only its velocities) bring
+    /// together are found.
+    pub fn fall(&self) -> f32 {
+        self.gravity.length() * (self.dt * self.dt) as f32
+    }
+
     /// Checks every parameter; a solver calls this before it touches state.
     pub fn validate(&self) -> Result<(), ParamError> {
         self.validate_without_stiffness()?;

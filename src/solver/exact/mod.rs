@@ -190,9 +190,8 @@ impl Method for ExactSolver {
         // map's upper sheet 10.1 % as it landed on the lower (0.3 % left
         // by the solve; 3.5 % with them in it).
         let c = contact_stiffness;
-        let fall = params.gravity.length() * (params.dt * params.dt) as f32;
-        ws.pairs
-            .update(model, state, (params.dt, fall), self_collision, c, true);
+        let path = (params.dt, params.fall());
+        ws.pairs.update(model, state, path, self_collision, c, true);
         // The penalty spheres, and the contacts as penalties.
         ws.penalties.clear();
         ws.penalties.extend_from_slice(spheres);

@@ -534,7 +534,7 @@ fn the_pairs_gravity_brings_together_within_the_step_are_in_the_solve() {
         stiffness: ClothMaterial::COTTON.spring_stiffness(&model),
         ..StepParams::LAB
     };
-    let fall = params.gravity.length() * (params.dt * params.dt) as f32;
+    let fall = params.fall();
     assert!(fall > 1.5e-3, "the fall closes the gap");
     for solver in [ExactSolver::REFERENCE, ExactSolver::BUDGET] {
         let mut state = ClothState::at_rest(&model, &Affine3A::IDENTITY);

@@ -139,9 +139,8 @@ impl Method for PbdSolver {
         // of the step with self-collision on a resting 64² fold).
         ws.start.clear();
         if let Some(sc) = self_collision {
-            let slack = gravity.length() * dt * dt;
             ws.self_contacts
-                .find_or_keep(model, x, v, dt, sc, slack, true);
+                .find_or_keep(model, x, v, dt, sc, params.fall(), true);
             ws.start.extend_from_slice(&x[..n]);
         }
         for i in 0..n {

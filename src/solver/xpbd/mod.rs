@@ -357,8 +357,7 @@ impl Method for XpbdSolver {
         // only.
         let pushing = |solid: &Shape| pushes_edges(solid, self_collision.is_some());
         let reach = if ws.solids[..projected].iter().any(pushing) {
-            v.iter().map(|v| v.length()).fold(0.0_f32, f32::max) * params.dt as f32
-                + gravity.length() * (params.dt * params.dt) as f32
+            v.iter().map(|v| v.length()).fold(0.0_f32, f32::max) * params.dt as f32 + params.fall()
         } else {
             0.0
         };
@@ -498,9 +497,8 @@ impl Method for XpbdSolver {
         // alone, missed pairs of a sheet yanked by a thrown ball: the drape
         // scene tangled.)
         if let Some(sc) = self_collision {
-            let slack = gravity.length() * (params.dt * params.dt) as f32;
             ws.self_contacts
-                .find(model, x, v, params.dt as f32, sc, slack);
+                .find(model, x, v, params.dt as f32, sc, params.fall());
         }
         pass(x, v, prev, (&[], &[]), (&[], &[], &[]), false, true);
         let springs = ColouredSprings::new(
@@ -637,7 +635,7 @@ fn near_any(
         lo = lo.min(x).min(end);
         hi = hi.max(x).max(end);
     }
-    let margin = Vec3A::from(params.gravity).length() * dt * dt + 0.01 * (hi - lo).max_element();
+    let margin = params.fall() + 0.01 * (hi - lo).max_element();
     if !margin.is_finite() {
         return true;
     }
