@@ -40,7 +40,8 @@ const FOLLOW_SLACK: f32 = 0.02;
 /// instead of one edge. Each spring is brought back to no less than its
 /// length before the move: what the step stretched is the step's to
 /// answer. With it and the pass's following, the landing's worst stretch
-/// over the 10 s was 2.4 %, nothing through.
+/// over the 10 s was 2.4 %, nothing through (5.4 % once the edge pass's
+/// last bits changed: the scene is chaotic).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Follow {
     /// Per vertex: 0 not in the rings, 1 moved (held), 2 following;

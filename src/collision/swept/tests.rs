@@ -296,3 +296,66 @@ fn a_sweep_over_the_last_substep_leaves_a_vertex_carried_round_a_solid() {
     project_swept(&model, &mut state, &[ball], sweep(1.0 / 16.0), 0.0, dt);
     assert_eq!(state.positions[0], end);
 }
+
+#[test]
+fn the_closed_form_deepest_point_agrees_with_the_search() {
+    // Segments of every kind against a sphere, a capsule and a plane: the
+    // closed form's depth is the search's (which it replaces in the edge
+    // pass) within rounding, and never shallower.
+    let shapes = [
+        Shape::Capsule(Capsule {
+            a: Vec3A::new(0.1, 0.2, -0.1),
+            b: Vec3A::new(0.1, 0.2, -0.1),
+            radius: 0.3,
+            friction: 0.0,
+        }),
+        Shape::Capsule(Capsule {
+            a: Vec3A::new(-0.4, 0.0, 0.1),
+            b: Vec3A::new(0.5, 0.3, -0.2),
+            radius: 0.15,
+            friction: 0.0,
+        }),
+        Shape::Plane(Plane {
+            point: Vec3A::new(0.0, 0.1, 0.0),
+            normal: Vec3A::new(0.6, 0.8, 0.0),
+            friction: 0.0,
+        }),
+    ];
+    let mut seed = 0x2545_f491_u32;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed as f32 / u32::MAX as f32 * 2.0 - 1.0
+    };
+    let mut inside = 0;
+    for shape in &shapes {
+        for k in 0..2000 {
+            let a = Vec3A::new(next(), next(), next());
+            // Long, short, a point, and parallel to the capsule's axis.
+            let b = match k % 4 {
+                0 => a,
+                1 => a + 0.05 * Vec3A::new(next(), next(), next()),
+                2 => match shape {
+                    Shape::Capsule(c) => a + 0.7 * (c.b - c.a),
+                    _ => a + Vec3A::X,
+                },
+                _ => Vec3A::new(next(), next(), next()),
+            };
+            let (t, fast) = deepest_fast(shape, a, b, SEARCH);
+            let (_, search) = deepest_within(shape, a, b, SEARCH);
+            assert!((0.0..=1.0).contains(&t), "{t}");
+            assert_eq!(fast, shape.signed_distance(a + t * (b - a)).0);
+            assert!(
+                fast <= search + 1e-6,
+                "{shape:?} {a} {b}: {fast} > {search}"
+            );
+            assert!(
+                (fast - search).abs() <= 1e-5,
+                "{shape:?} {a} {b}: {fast} vs {search}"
+            );
+            inside += usize::from(fast < 0.0);
+        }
+    }
+    assert!(inside > 500, "too few segments meet a solid: {inside}");
+}
