@@ -173,7 +173,13 @@ fn deepest_within(shape: &Shape, a: Vec3A, b: Vec3A, iterations: usize) -> (f32,
             fd = f(d);
         }
     }
-    let t = 0.5 * (lo + hi);
+    deeper_than_ends(f, 0.5 * (lo + hi))
+}
+
+/// `(t, f(t))`, or an end of the segment where `f` is at least as low
+/// there (the lower end first).
+#[inline]
+fn deeper_than_ends(f: impl Fn(f32) -> f32, t: f32) -> (f32, f32) {
     let (fa, fb, ft) = (f(0.0), f(1.0), f(t));
     if fa <= ft && fa <= fb {
         (0.0, fa)
@@ -198,14 +204,7 @@ fn deepest_fast(shape: &Shape, a: Vec3A, b: Vec3A, iterations: usize) -> (f32, f
         Shape::Plane(_) => 0.0,
         Shape::Capsule(c) => nearest_to_axis(a, b, c.a, c.b),
     };
-    let (fa, fb, ft) = (f(0.0), f(1.0), f(t));
-    if fa <= ft && fa <= fb {
-        (0.0, fa)
-    } else if fb <= ft {
-        (1.0, fb)
-    } else {
-        (t, ft)
-    }
+    deeper_than_ends(f, t)
 }
 
 /// The parameter `s ∈ [0, 1]` of the point of segment `a`–`b` nearest to
