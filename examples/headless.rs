@@ -5,7 +5,7 @@
 //! cargo run --release --example headless -- [--scene lab|assignment|cape|drape] [--method M] \
 //!     [--n 21 | --rows R --cols C] [--cloths 1] [--steps 300] [--iterations K] [--k STIFFNESS] \
 //!     [--dt SECONDS] [--damping D] [--mass TOTAL] [--material cotton|E,RHO] \
-//!     [--rho 0.995] [--refinement 16] [--sphere] \
+//!     [--rho 0.995] [--refinement 16] [--chains] [--sphere] \
 //!     [--penalty C] [--exact-k] [--global auto|direct|mg|mgN] [--dump positions.csv] \
 //!     [--compute-threads N]
 //! ```
@@ -100,6 +100,7 @@ const USAGE: &str = "usage: headless [OPTIONS]
                            N/m and an areal density RHO in kg/m² (default: none)
   --rho RHO                Chebyshev's fixed spectral radius (default: the preset's)
   --refinement R           stiff's most substeps x near a collider (default 16)
+  --chains                 stiff solves its chains of stretch springs whole
   --sphere                 add the scene's sphere (default: none)
   --no-self-collision      the drape scene's sheets without SelfCollision
   --throw-at S             the drape scene throws a ball through it at S seconds
@@ -138,6 +139,7 @@ struct Options {
     material: Option<ClothMaterial>,
     rho: Option<f32>,
     refinement: Option<u32>,
+    chains: bool,
     /// Whether `--method` was given (the cape scene's default is the
     /// game's, `stiff`).
     method_given: bool,
@@ -173,6 +175,7 @@ impl Default for Options {
             material: None,
             rho: None,
             refinement: None,
+            chains: false,
             method_given: false,
             sphere: false,
             no_self_collision: false,
@@ -227,6 +230,7 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             }
             Long("rho") => o.rho = Some(value(&mut parser, "--rho")?),
             Long("refinement") => o.refinement = Some(value(&mut parser, "--refinement")?),
+            Long("chains") => o.chains = true,
             Long("sphere") => o.sphere = true,
             Long("no-self-collision") => o.no_self_collision = true,
             Long("throw-at") => o.throw_at = Some(value(&mut parser, "--throw-at")?),
@@ -273,6 +277,11 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
         (_, Some(_)) => {
             return Err("--refinement goes with stiff and is at least 1".into());
         }
+        _ => {}
+    }
+    match (&mut o.method, o.chains) {
+        (AnyMethod::Xpbd(x), true) => *x = x.with_chains(true),
+        (_, true) => return Err("--chains goes with stiff".into()),
         _ => {}
     }
     match (&mut o.method, o.rho) {

@@ -89,7 +89,7 @@
 //! | [`LinearImplicitSolver`] / [`LinearImplicitPlugin`] | linearly implicit Euler, sparse CG or LDLᵀ | assignment | [`solver::linear`] |
 //! | [`ProjectiveSolver`] / [`ProjectivePlugin`] | projective dynamics (local–global) on the implicit-Euler objective, Chebyshev- (`pd`: at most 10 iterations, stopping early once its estimated error is 1 % of the step's motion) or Anderson-accelerated (`pd-anderson`), factorised once (or a multigrid V-cycle per iteration on large cloths: [`GlobalSolve`]) | Liu et al. 2013, Wang 2015, Peng et al. 2018 | [`solver::projective`] |
 //! | [`ExactSolver`] / [`ExactPlugin`] | exact implicit Euler: Newton, sparse Cholesky, line search; to 1e-9 (`exact`) or on a budget of 16 iterations to 1e-5 (`newton`) | the reference | [`solver::exact`] |
-//! | [`XpbdSolver`] / [`XpbdPlugin`] | XPBD with small steps (`stiff`: 960 substeps per second of one Gauss–Seidel sweep, up to 16× near a collider), contacts projected and pins moved in every substep, tethers to the pins | Macklin et al. 2016, 2019; Kim et al. 2012 | [`solver::xpbd`] |
+//! | [`XpbdSolver`] / [`XpbdPlugin`] | XPBD with small steps (`stiff`: 960 substeps per second of one Gauss–Seidel sweep, up to 16× near a collider), contacts projected and pins moved in every substep, tethers to the pins, optionally chains of stretch springs solved whole ([`XpbdSolver::chains`]) | Macklin et al. 2016, 2019; Kim et al. 2012 | [`solver::xpbd`] |
 //!
 //! **Which preset for what** (from the stability map, the report and the
 //! perf page; the README has the numbers). What decides is `k·dt²/m`, a

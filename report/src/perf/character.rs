@@ -34,7 +34,8 @@ pub struct CapeRow {
 }
 
 /// The methods of the table: `stiff` as a game gets it, `stiff` without its
-/// refinement near colliders, and `pd`.
+/// refinement near colliders, both with chains solved whole
+/// ([`XpbdSolver::chains`]), and `pd`.
 fn methods() -> Vec<(String, AnyMethod)> {
     let stiff = XpbdSolver::STIFF;
     let pd = bevy_cloth::methods::preset("pd").map(|p| p.method);
@@ -45,6 +46,14 @@ fn methods() -> Vec<(String, AnyMethod)> {
             AnyMethod::Xpbd(stiff.with_max_refinement(1)),
         ),
     ];
+    m.push((
+        "stiff, chains".to_string(),
+        AnyMethod::Xpbd(stiff.with_chains(true)),
+    ));
+    m.push((
+        "stiff, chains, no refinement".to_string(),
+        AnyMethod::Xpbd(stiff.with_chains(true).with_max_refinement(1)),
+    ));
     m.extend(pd.map(|pd| ("pd".to_string(), pd)));
     m
 }
