@@ -6,13 +6,12 @@
 
 use std::fmt::Write as _;
 
-use bevy_cloth::methods::AnyMethod;
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use crate::contact::{self, ContactSizes};
-use crate::scenarios::map_methods;
-use crate::stability::{StabilityConfig, labels};
+use crate::scenarios::contact_methods;
+use crate::stability::StabilityConfig;
 
 /// The heading of the map's contact section.
 pub(crate) const CONTACT_HEADING: &str = "\n## Contact extreme cases (every method)\n";
@@ -65,24 +64,24 @@ pub fn rerun_contact(config: &StabilityConfig, only: Option<&str>) -> std::io::R
     } else {
         ProgressBar::hidden()
     };
-    contact_section(&mut section, &map_methods(), &labels(), sizes, &bar, kept);
+    contact_section(&mut section, sizes, &bar, kept);
     bar.finish_and_clear();
     let page = format!("{}{}\n{}", &page[..start], section.trim_end(), &page[end..]);
     std::fs::write(&path, &page)?;
     Ok(page)
 }
 
-/// The contact cases' table: every method on every case (in parallel),
-/// but the rows `kept` gives (a case's name to its row, run again if
-/// `None`).
+/// The contact cases' table: every method of [`contact_methods`] on every
+/// case (in parallel), but the rows `kept` gives (a case's name to its row,
+/// run again if `None`).
 pub(crate) fn contact_section(
     md: &mut String,
-    methods: &[AnyMethod],
-    labels: &[String],
     sizes: ContactSizes,
     bar: &ProgressBar,
     kept: impl Fn(&str) -> Option<String>,
 ) {
+    let methods = contact_methods();
+    let labels: Vec<String> = methods.iter().map(crate::variant).collect();
     md.push_str(CONTACT_HEADING);
     md.push('\n');
     writeln!(
@@ -118,7 +117,9 @@ pub(crate) fn contact_section(
          30 m/s: what strains it is how fast a method's springs pass the pull on (an edge per \
          sweep for the position-based ones). `str` is the largest stretch at any step; `✓` \
          marks 0 through or held with at most {3:.0} % stretch (cotton stretched further has \
-         torn); `caught` is the guard's stop.\n",
+         torn); `caught` is the guard's stop. The last column, `stiff chains`, is `stiff` \
+         with its chains of stretch springs (rows, columns, diagonals) solved whole in each \
+         substep, off in the preset.\n",
         sizes.folded,
         sizes.seconds,
         sizes.ball,
@@ -131,7 +132,7 @@ pub(crate) fn contact_section(
     )
     .ok();
     write!(md, "| case |").ok();
-    for l in labels {
+    for l in &labels {
         write!(md, " {l} |").ok();
     }
     writeln!(md, "\n|---|{}", "---|".repeat(labels.len())).ok();

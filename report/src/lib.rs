@@ -71,6 +71,7 @@ pub fn variant(method: &AnyMethod) -> String {
             GlobalSolve::Direct => format!("{} direct", method.name()),
             GlobalSolve::Multigrid { cycles } => format!("{} mg{cycles}", method.name()),
         },
+        AnyMethod::Xpbd(x) if x.chains => format!("{} chains", method.name()),
         _ => method.name().to_owned(),
     }
 }

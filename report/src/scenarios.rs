@@ -281,6 +281,20 @@ pub fn map_methods() -> Vec<AnyMethod> {
     methods
 }
 
+/// The methods of the map's contact section: [`map_methods`], then `stiff`
+/// with its chains of stretch springs solved whole
+/// ([`XpbdSolver::chains`](bevy_cloth::solver::xpbd::XpbdSolver::chains),
+/// off in the preset), whose reach the contact cases show (a ball carrying a
+/// sheet, layers pressed together) and the map's other cases would not.
+pub fn contact_methods() -> Vec<AnyMethod> {
+    let mut methods = map_methods();
+    methods.extend(PRESETS.iter().filter_map(|p| match p.method {
+        AnyMethod::Xpbd(x) => Some(AnyMethod::Xpbd(x.with_chains(true))),
+        _ => None,
+    }));
+    methods
+}
+
 /// The end of one run.
 #[derive(Clone, Debug)]
 pub struct Run {

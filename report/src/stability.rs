@@ -528,7 +528,7 @@ pub fn run(config: &StabilityConfig) -> std::io::Result<String> {
 
     // 3b. The contact cases, judged without a reference.
     if let Some(sizes) = config.contact {
-        contact_section(&mut md, &methods, &labels, sizes, &bar, |_| None);
+        contact_section(&mut md, sizes, &bar, |_| None);
     }
 
     // 4. The explicit limit.

@@ -567,8 +567,9 @@ fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) {
          nothing inside the body; \"stiff\" keeps the body clear, and its cost is its \
          refinement near colliders (the body is always near). With chains \
          (`XpbdSolver::chains`) each substep solves the cape's rows, columns and diagonal \
-         lines of stretch springs whole before its sweep, so a pull passes along them at \
-         once, at about twice the step."
+         lines of stretch springs whole before its sweep, eight chains that share no \
+         vertex at a time, so a pull passes along them at once (a 64² grid's step, 16 \
+         substeps: 0.78 ms without chains, 3.25 ms with them, in six interleaved rounds)."
     )
     .ok();
     writeln!(w).ok();

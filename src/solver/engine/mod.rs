@@ -12,12 +12,15 @@
 //!   [`Stencil`](crate::model::ClothTopology);
 //! - `sweep`: XPBD's Gauss–Seidel sweep over coloured springs, batched
 //!   within a colour;
+//! - `chain_lanes`: XPBD's chains of stretch springs solved whole, eight
+//!   chains that share no vertex at a time;
 //! - `cholesky`, `lane_factor`, `supernodal`: the sparse factorisation the
 //!   direct methods share and its two triangular-solve layouts.
 //!
 //! The module is public but hidden from the docs: the report, the
 //! benchmarks and the perf page measure its parts; a game never needs it.
 
+pub(crate) mod chain_lanes;
 pub(crate) mod cholesky;
 pub mod kernels;
 pub(crate) mod lane_factor;

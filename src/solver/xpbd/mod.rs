@@ -140,13 +140,16 @@ pub struct XpbdSolver {
     /// Whether each substep first solves the cloth's chains of stretch
     /// springs whole (its rows, columns and diagonal lines: paths of springs that go on
     /// straight through their vertices), one tridiagonal system per chain,
-    /// before its sweep (see the `chains` module). One sweep passes a pull
-    /// one spring on per substep, so a fine cloth answers its pins and
-    /// colliders slowly and stretches; a chain passes it from end to end in
-    /// one substep. The cape scene's 4,000-vertex cape without refinement:
-    /// 48 % largest stretch without, 27 % with (the median over its steps
-    /// 9.3 % and 2.8 %), at about twice the step (the perf page). Off in the `stiff` preset, which the stability map and the
-    /// report measure without it; a saved method from before it is off.
+    /// eight chains at a time, before its sweep (see the `chains` module).
+    /// One sweep passes a pull one spring on per substep, so a fine cloth
+    /// answers its pins and colliders slowly and stretches; a chain passes
+    /// it from end to end in one substep. The cape scene's 4,000-vertex
+    /// cape without refinement: 48 % largest stretch without, 20 % with (the
+    /// perf page); a 64² grid's step 0.78 ms without, 3.25 ms with. Off in
+    /// the `stiff` preset, which
+    /// the stability map and the report measure without it (the map's
+    /// contact cases show it beside, as `stiff chains`); a saved method from
+    /// before it is off.
     #[reflect(default)]
     pub chains: bool,
 }
@@ -530,10 +533,7 @@ impl Method for XpbdSolver {
         }
         pass(x, v, prev, (&[], &[]), (&[], &[], &[]), false, true);
         // Chains of stretch springs solved whole before each sweep.
-        let chain_compliance = (1.0
-            / (f64::from(h) * f64::from(h) * f64::from(k[SpringKind::Stretch as usize])))
-            as f32;
-        if self.chains {
+        let chain_compliance = if self.chains {
             ws.chains.update(model);
             ws.inv_mass.clear();
             ws.inv_mass.extend(
@@ -543,7 +543,11 @@ impl Method for XpbdSolver {
                     },
                 ),
             );
-        }
+            (1.0 / (f64::from(h) * f64::from(h) * f64::from(k[SpringKind::Stretch as usize])))
+                as f32
+        } else {
+            0.0
+        };
         let springs = ColouredSprings::new(
             &ws.links.ends,
             &ws.links.rest,
@@ -575,7 +579,8 @@ impl Method for XpbdSolver {
                 }
             }
             if self.chains {
-                ws.chains.solve(x, &ws.inv_mass, chain_compliance);
+                ws.chains
+                    .solve(params.simd, x, &ws.inv_mass, chain_compliance);
             }
             sweep(params.simd, springs, x);
             if self_collision.is_some() {
