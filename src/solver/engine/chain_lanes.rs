@@ -14,14 +14,10 @@
 //! direction, violation and coupling are zero, so it neither moves the
 //! cloth nor touches its chain's real springs.
 //!
-//! Measured (a 64² grid of 1 kg swinging from one edge, 16 substeps a
-//! step, no tethers, release, medians of six interleaved rounds): the step
-//! took 0.78 ms without chains, 4.2 ms with them solved one after the
-//! other, 3.25 ms batched. Reading each row's positions once (a spring's
-//! second end is the next one's first), moving each vertex once and
-//! multiplying by reciprocals brought it to 2.65 ms in a probe, but moves
-//! the last bits, so it waits for the stability map's and perf page's
-//! chains rows to be run again with it.
+//! Batching is what makes the chains affordable beside the sweep; what it
+//! saves, and a faster kernel measured but not kept (it moves the last
+//! bits, so the map's and the perf page's chains rows must be run again
+//! with it), are in the CHANGELOG and the perf page.
 
 use bevy::math::Vec3A;
 

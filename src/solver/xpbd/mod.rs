@@ -145,11 +145,10 @@ pub struct XpbdSolver {
     /// answers its pins and colliders slowly and stretches; a chain passes
     /// it from end to end in one substep. The cape scene's 4,000-vertex
     /// cape without refinement: 48 % largest stretch without, 20 % with (the
-    /// perf page); a 64² grid's step 0.78 ms without, 3.25 ms with. Off in
-    /// the `stiff` preset, which
-    /// the stability map and the report measure without it (the map's
-    /// contact cases show it beside, as `stiff chains`); a saved method from
-    /// before it is off.
+    /// perf page, which also gives its cost). Off in the `stiff` preset,
+    /// which the stability map and the report measure without it (the
+    /// map's contact cases show it beside, as `stiff chains`); a saved
+    /// method from before it is off.
     #[reflect(default)]
     pub chains: bool,
 }
