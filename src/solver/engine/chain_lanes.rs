@@ -6,18 +6,13 @@
 //! divisions: each spring's pivot needs the one before it, so a chain
 //! solved alone waits on the divider at every spring. Chains that share
 //! no vertex are independent, so a batch of [`LANES`] of them is solved
-//! in lock step, one spring of each per row, each row's arithmetic written
-//! lane by lane for the compiler to vectorise at the step's SIMD level
-//! (through `at_level!`; no `unsafe`, no fused multiply–adds, so the same
-//! bits at every level). A lane whose chain is shorter than the batch's
-//! longest repeats its last vertex: a spring of length zero, whose
-//! direction, violation and coupling are zero, so it neither moves the
-//! cloth nor touches its chain's real springs.
-//!
-//! Batching is what makes the chains affordable beside the sweep; what it
-//! saves, and a faster kernel measured but not kept (it moves the last
-//! bits, so the map's and the perf page's chains rows must be run again
-//! with it), are in the CHANGELOG and the perf page.
+//! in lock step, one spring of each per row, each row's lengths, square
+//! roots and divisions as one vector operation (the compiler's, at the
+//! step's SIMD level through `at_level!`; no `unsafe`, no fused
+//! multiply–adds, so the same bits at every level). A lane whose chain is
+//! shorter than the batch's longest repeats its last vertex: a spring of
+//! length zero, whose direction, violation and coupling are zero, so it
+//! neither moves the cloth nor touches its chain's real springs.
 
 use bevy::math::Vec3A;
 
@@ -97,6 +92,19 @@ at_level! {
     fn solve_at(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) => solve_kernel
 }
 
+/// The positions (by axis) and inverse masses of one row's vertices.
+#[inline(always)]
+fn gather(row: &[u32; LANES], x: &[Vec3A], w: &[f32]) -> ([[f32; LANES]; 3], [f32; LANES]) {
+    let mut p = [[0.0f32; LANES]; 3];
+    let mut wv = [0.0f32; LANES];
+    for (j, &v) in row.iter().enumerate() {
+        let at = x[v as usize];
+        (p[0][j], p[1][j], p[2][j]) = (at.x, at.y, at.z);
+        wv[j] = w[v as usize];
+    }
+    (p, wv)
+}
+
 #[inline(always)]
 fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) {
     let ChainLanes {
@@ -110,57 +118,74 @@ fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) 
     for batch in batches.windows(2) {
         let rows = &vertices[batch[0]..batch[1]];
         let rest = &rest[batch[0]..batch[1]];
-        let m = rows.len().saturating_sub(1);
+        let Some(first) = rows.first() else {
+            continue;
+        };
+        let m = rows.len() - 1;
         // Forward elimination as the springs are read: spring i joins rows
         // i and i + 1; its coupling to spring i − 1 is −w(row i) nᵢ₋₁·nᵢ
         // (zero for the first, whose previous direction is zero).
-        let mut pivot = [1.0f32; LANES];
+        // `recip` is 1/pivot (0 where the pivot is not positive: a chain
+        // of pins), carried to the next spring's coupling; `pa`, `wa` the
+        // positions and inverse masses of the row the spring starts at,
+        // read once (a spring's second end is the next one's first).
+        let mut recip = [1.0f32; LANES];
         let mut prev = [0.0f32; LANES];
         let mut last = [[0.0f32; LANES]; 3];
+        let (mut pa, mut wa) = gather(first, x, w);
         for i in 0..m {
-            let (va, vb) = (&rows[i], &rows[i + 1]);
-            let mut d = [[0.0f32; LANES]; 3];
-            let mut wa = [0.0f32; LANES];
-            let mut wb = [0.0f32; LANES];
-            for j in 0..LANES {
-                let (a, b) = (va[j] as usize, vb[j] as usize);
-                let e = x[a] - x[b];
-                (d[0][j], d[1][j], d[2][j]) = (e.x, e.y, e.z);
-                (wa[j], wb[j]) = (w[a], w[b]);
-            }
+            let (pb, wb) = gather(&rows[i + 1], x, w);
+            let r = &rest[i + 1];
+            // The lanes' arithmetic, one vector operation per line.
             let mut dir = [[0.0f32; LANES]; 3];
+            let mut up = [0.0f32; LANES];
             for j in 0..LANES {
-                let l = ((d[0][j] * d[0][j] + d[1][j] * d[1][j]) + d[2][j] * d[2][j]).sqrt();
-                let live = l > 0.0;
-                let c = if live { rest[i + 1][j] - l } else { 0.0 };
-                for k in 0..3 {
-                    dir[k][j] = if live { d[k][j] / l } else { 0.0 };
-                }
+                let d = [
+                    pa[0][j] - pb[0][j],
+                    pa[1][j] - pb[1][j],
+                    pa[2][j] - pb[2][j],
+                ];
+                let l = ((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]).sqrt();
+                let inv = if l > 0.0 { 1.0 / l } else { 0.0 };
+                let c = if l > 0.0 { r[j] - l } else { 0.0 };
+                dir[0][j] = d[0] * inv;
+                dir[1][j] = d[1] * inv;
+                dir[2][j] = d[2] * inv;
                 let diag = (wa[j] + wb[j]) + alpha;
                 let off = -wa[j]
                     * ((last[0][j] * dir[0][j] + last[1][j] * dir[1][j]) + last[2][j] * dir[2][j]);
-                let up = if pivot[j] > 0.0 { off / pivot[j] } else { 0.0 };
-                upper[i][j] = up;
-                pivot[j] = diag - off * up;
-                let next = c - off * prev[j];
-                prev[j] = if pivot[j] > 0.0 { next / pivot[j] } else { 0.0 };
-                rhs[i][j] = prev[j];
+                up[j] = off * recip[j];
+                let pivot = diag - off * up[j];
+                recip[j] = if pivot > 0.0 { 1.0 / pivot } else { 0.0 };
+                prev[j] = (c - off * prev[j]) * recip[j];
             }
+            upper[i] = up;
+            rhs[i] = prev;
             n[i] = dir;
             last = dir;
+            (pa, wa) = (pb, wb);
         }
-        // Back substitution, then each spring's multiplier moves its ends.
+        // Back substitution.
         for i in (1..m).rev() {
             for j in 0..LANES {
                 rhs[i - 1][j] -= upper[i][j] * rhs[i][j];
             }
         }
-        for i in 0..m {
-            for j in 0..LANES {
-                let (a, b) = (rows[i][j] as usize, rows[i + 1][j] as usize);
-                let push = Vec3A::new(n[i][0][j], n[i][1][j], n[i][2][j]) * rhs[i][j];
-                x[a] += w[a] * push;
-                x[b] -= w[b] * push;
+        // Each spring's multiplier pushes its ends apart along it: a row's
+        // vertex moves by its inverse mass times the push of the spring it
+        // starts less that of the spring it ends (one write per vertex).
+        let push = |i: usize, j: usize| {
+            if i < m {
+                Vec3A::new(n[i][0][j], n[i][1][j], n[i][2][j]) * rhs[i][j]
+            } else {
+                Vec3A::ZERO
+            }
+        };
+        for (r, row) in rows.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let before = if r > 0 { push(r - 1, j) } else { Vec3A::ZERO };
+                let v = v as usize;
+                x[v] += w[v] * (push(r, j) - before);
             }
         }
     }

@@ -144,7 +144,7 @@ pub struct XpbdSolver {
     /// One sweep passes a pull one spring on per substep, so a fine cloth
     /// answers its pins and colliders slowly and stretches; a chain passes
     /// it from end to end in one substep. The cape scene's 4,000-vertex
-    /// cape without refinement: 48 % largest stretch without, 20 % with (the
+    /// cape without refinement: 48 % largest stretch without, 22 % with (the
     /// perf page, which also gives its cost). Off in the `stiff` preset,
     /// which the stability map and the report measure without it (the
     /// map's contact cases show it beside, as `stiff chains`); a saved
