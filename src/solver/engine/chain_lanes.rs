@@ -174,19 +174,29 @@ fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) 
         // Each spring's multiplier pushes its ends apart along it: a row's
         // vertex moves by its inverse mass times the push of the spring it
         // starts less that of the spring it ends (one write per vertex).
-        let push = |i: usize, j: usize| {
-            if i < m {
-                Vec3A::new(n[i][0][j], n[i][1][j], n[i][2][j]) * rhs[i][j]
-            } else {
-                Vec3A::ZERO
-            }
-        };
+        // The pushes and their differences are taken by axis, all lanes at
+        // once; only the last multiply and the write are per vertex.
+        let mut before = [[0.0f32; LANES]; 3];
         for (r, row) in rows.iter().enumerate() {
-            for (j, &v) in row.iter().enumerate() {
-                let before = if r > 0 { push(r - 1, j) } else { Vec3A::ZERO };
-                let v = v as usize;
-                x[v] += w[v] * (push(r, j) - before);
+            let mut now = [[0.0f32; LANES]; 3];
+            if r < m {
+                for (now, n) in now.iter_mut().zip(&n[r]) {
+                    for j in 0..LANES {
+                        now[j] = n[j] * rhs[r][j];
+                    }
+                }
             }
+            let mut step = [[0.0f32; LANES]; 3];
+            for ((step, now), before) in step.iter_mut().zip(&now).zip(&before) {
+                for j in 0..LANES {
+                    step[j] = now[j] - before[j];
+                }
+            }
+            for (j, &v) in row.iter().enumerate() {
+                let v = v as usize;
+                x[v] += w[v] * Vec3A::new(step[0][j], step[1][j], step[2][j]);
+            }
+            before = now;
         }
     }
 }
