@@ -113,7 +113,10 @@
 //! after them (four rings of neighbours, each spring brought back to 2 %
 //! over its rest length or its length before the move): left alone, the
 //! springs of the moved end took the whole move, a third of an edge or
-//! more, in one step. It costs the exact check, a small share of a `stiff`
+//! more, in one step. A cloth with `stiff`'s chains then settles after
+//! the moves, positions only (the chains pulled, the pairs held, the
+//! solids projected): its chains would take what the rings left back all
+//! at once in the next step, as velocity. It costs the exact check, a small share of a `stiff`
 //! step with self-collision but several steps of the other methods, so
 //! they leave it (the CHANGELOG has the measurements). Edges through
 //! another cloth are taken back the same way after every method's step

@@ -78,18 +78,29 @@ impl ChainLanes {
     }
 
     /// One solve of every batch in turn at `x`, with inverse masses `w`
-    /// and compliance `alpha` (`1/(k h²)`), at SIMD `level`.
+    /// and compliance `alpha` (`1/(k h²)`), at SIMD `level`; with
+    /// `pull_only`, a compressed spring's violation is taken as zero (it
+    /// still couples its neighbours).
     ///
     /// # Panics
     /// If a chain names a vertex past `x` or `w`.
-    pub(crate) fn solve(&mut self, level: Simd, x: &mut [Vec3A], w: &[f32], alpha: f32) {
-        solve_at(level, self, x, w, alpha);
+    pub(crate) fn solve(
+        &mut self,
+        level: Simd,
+        x: &mut [Vec3A],
+        w: &[f32],
+        alpha: f32,
+        pull_only: bool,
+    ) {
+        // The violation is `rest − length`, at most this.
+        let cap = if pull_only { 0.0 } else { f32::INFINITY };
+        solve_at(level, self, x, w, [alpha, cap]);
     }
 }
 
 at_level! {
     /// [`solve_kernel`] at `level`.
-    fn solve_at(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) => solve_kernel
+    fn solve_at(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha_cap: [f32; 2]) => solve_kernel
 }
 
 /// The positions (by axis) and inverse masses of one row's vertices.
@@ -106,7 +117,7 @@ fn gather(row: &[u32; LANES], x: &[Vec3A], w: &[f32]) -> ([[f32; LANES]; 3], [f3
 }
 
 #[inline(always)]
-fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) {
+fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], [alpha, cap]: [f32; 2]) {
     let ChainLanes {
         vertices,
         rest,
@@ -147,7 +158,7 @@ fn solve_kernel(lanes: &mut ChainLanes, x: &mut [Vec3A], w: &[f32], alpha: f32) 
                 ];
                 let l = ((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]).sqrt();
                 let inv = if l > 0.0 { 1.0 / l } else { 0.0 };
-                let c = if l > 0.0 { r[j] - l } else { 0.0 };
+                let c = if l > 0.0 { (r[j] - l).min(cap) } else { 0.0 };
                 dir[0][j] = d[0] * inv;
                 dir[1][j] = d[1] * inv;
                 dir[2][j] = d[2] * inv;

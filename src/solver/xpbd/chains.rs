@@ -94,7 +94,13 @@ impl Chains {
     /// One solve of every chain at `x`, batch after batch, with inverse
     /// masses `w` and compliance `compliance` (`1/(k h²)`), at SIMD `level`.
     pub(crate) fn solve(&mut self, level: Simd, x: &mut [Vec3A], w: &[f32], compliance: f32) {
-        self.lanes.solve(level, x, w, compliance);
+        self.lanes.solve(level, x, w, compliance, false);
+    }
+
+    /// [`solve`](Self::solve) pulling only: a compressed spring's violation
+    /// taken as zero.
+    pub(crate) fn pull(&mut self, level: Simd, x: &mut [Vec3A], w: &[f32], compliance: f32) {
+        self.lanes.solve(level, x, w, compliance, true);
     }
 }
 
@@ -376,7 +382,7 @@ mod tests {
             }
         }
         let mut want = state.positions.clone();
-        alone.solve(Simd::Baseline, &mut want, &w, 1e-3);
+        alone.solve(Simd::Baseline, &mut want, &w, 1e-3, false);
         assert_ne!(want, state.positions);
         for level in [Simd::Baseline, Simd::Auto, Simd::Avx2, Simd::Avx512] {
             let mut got = state.positions.clone();
@@ -421,6 +427,37 @@ mod tests {
         }
         assert_eq!(vertical, 2 * 11);
         assert_eq!(&x[..2], &top[..]);
+    }
+
+    #[test]
+    fn pulling_only_leaves_compressed_springs_and_is_the_solve_on_stretched_ones() {
+        // The same two columns, pushed up (every spring of the columns
+        // compressed): pulling moves nothing; pulled down (every one
+        // stretched): pulling is the whole solve, bit for bit.
+        let model = ClothBuilder::grid(12, 2, Vec3::ZERO, Vec3::X, Vec3::NEG_Y)
+            .with_pins([0, 1])
+            .build()
+            .unwrap();
+        let w = inverse_masses(&model);
+        let mut chains = Chains::default();
+        chains.update(&model);
+        let rest = ClothState::at_rest(&model, &Affine3A::IDENTITY).positions;
+        let shifted = |by: f32| -> Vec<Vec3A> {
+            rest.iter()
+                .enumerate()
+                .map(|(i, &p)| p + Vec3A::Y * (by * (i / 2) as f32))
+                .collect()
+        };
+        let squeezed = shifted(0.01);
+        let mut pulled = squeezed.clone();
+        chains.pull(Simd::Auto, &mut pulled, &w, 0.0);
+        assert_eq!(pulled, squeezed);
+        let stretched = shifted(-0.01);
+        let (mut pulled, mut solved) = (stretched.clone(), stretched.clone());
+        chains.pull(Simd::Auto, &mut pulled, &w, 0.0);
+        chains.solve(Simd::Auto, &mut solved, &w, 0.0);
+        assert_ne!(solved, stretched);
+        assert_eq!(pulled, solved);
     }
 
     #[test]
