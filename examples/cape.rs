@@ -17,7 +17,9 @@
 //! The "Character" panel switches each constraint on and off so the
 //! difference shows, and teleports the character 100 m (key `t`); the
 //! camera follows it. `--cols` sets the cape's columns (it has 8/5 as many
-//! rows: 50 gives the perf page's 4,000-vertex cape).
+//! rows: 50 gives the perf page's 4,000-vertex cape). The garments run
+//! `stiff` with its refinement near colliders capped at 4×
+//! (`character::GARMENT_METHOD`; `--method stiff` runs the preset's 16×).
 
 // Shared with `headless --scene cape`, whose run without a window this
 // example does not use.

@@ -33,7 +33,8 @@
 //!   stiffness `--penalty` (default 10).
 //! - `cape`: the character of `examples/cape.rs` (run, sharp turns, jumps,
 //!   teleported 100 m at 6 s) in its cape (`--n` columns, 8/5 as many rows)
-//!   and skirt, with tethers, max distance, backstop and inertia; the line
+//!   and skirt, with tethers, max distance, backstop and inertia (`stiff`
+//!   with its refinement capped at 4× by default); the line
 //!   is the cape's, with `max_stretch` its largest over the run (and
 //!   `skirt_max_stretch` the skirt's), and adds `teleports=` and `body_penetrations=` (garment
 //!   vertices found inside a body capsule after a step, counted over the
@@ -79,8 +80,9 @@ use cli::{CliError, Long, Parser, Short, value};
 const USAGE: &str = "usage: headless [OPTIONS]
 
   --scene lab|assignment|cape|drape   the scene (default lab)
-  --method NAME            a preset (default chebyshev, the lab's; stiff in the cape
-                           and drape scenes, a game's default): jacobi, chebyshev,
+  --method NAME            a preset (default chebyshev, the lab's; stiff in the drape
+                           scene, a game's default, and in the cape scene stiff with
+                           its refinement capped at 4, --refinement 4): jacobi, chebyshev,
                            chebyshev-auto, pbd, symplectic, linear-cg, linear-direct, pd,
                            pd-anderson, newton, exact, stiff
   --n N                    the lab cloth's side in vertices (default 21); in the cape
@@ -140,8 +142,8 @@ struct Options {
     rho: Option<f32>,
     refinement: Option<u32>,
     chains: bool,
-    /// Whether `--method` was given (the cape scene's default is the
-    /// game's, `stiff`).
+    /// Whether `--method` was given (the drape scene's default is the
+    /// game's, `stiff`; the cape scene's `character::GARMENT_METHOD`).
     method_given: bool,
     sphere: bool,
     /// The drape scene without its sheets' self-collision.
@@ -247,8 +249,12 @@ fn parse_args(mut parser: Parser) -> Result<Options, CliError> {
             _ => return Err(arg.unexpected().into()),
         }
     }
-    if matches!(o.scene, Scene::Cape | Scene::Drape) && !o.method_given {
-        o.method = AnyMethod::default();
+    if !o.method_given {
+        match o.scene {
+            Scene::Cape => o.method = character::GARMENT_METHOD,
+            Scene::Drape => o.method = AnyMethod::default(),
+            Scene::Lab | Scene::Assignment => {}
+        }
     }
     if o.iterations == Some(0) {
         return Err("--iterations must be at least 1".into());

@@ -116,9 +116,10 @@
 //! more, in one step. A cloth with `stiff`'s chains then settles after
 //! the moves, positions only (the chains pulled, the pairs held, the
 //! solids projected): its chains would take what the rings left back all
-//! at once in the next step, as velocity. It costs the exact check, a small share of a `stiff`
-//! step with self-collision but several steps of the other methods, so
-//! they leave it (the CHANGELOG has the measurements). Edges through
+//! at once in the next step, as velocity. It costs the exact check, a
+//! small share of a `stiff` step with self-collision but several steps of
+//! the other methods, so they leave it (the CHANGELOG has the
+//! measurements). Edges through
 //! another cloth are taken back the same way after every method's step
 //! (`untangle_between`, in the pass below, where two cloths' boxes meet):
 //! a ball that pressed one sheet through the one under it within a step

@@ -247,9 +247,18 @@ fn a_cape_teleported_100_m_moves_with_its_anchor_and_rests_there_at_once() {
 
 #[test]
 fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() {
+    // The scene's garments' method (the refinement capped at 4×) and the
+    // preset's.
+    for method in [crate::cape_scene::GARMENT_METHOD, AnyMethod::default()] {
+        cape_scene_run(method);
+    }
+}
+
+fn cape_scene_run(method: AnyMethod) {
     use crate::cape_scene::{BodyPenetrations, CapeScenePlugin, CapeSettings, Garment, Running};
     let mut app = app_with((ClothPlugins::default(), CapeScenePlugin));
     app.insert_resource(CapeSettings {
+        method,
         cape_cols: 8,
         ..Default::default()
     })
@@ -281,7 +290,7 @@ fn the_cape_scene_runs_turns_jumps_and_teleports_with_nothing_inside_the_body() 
     }
     assert_eq!(seen, 2);
     for &(name, stretch) in &count.max_stretch {
-        assert!(stretch < 0.1, "{name}: {stretch}");
+        assert!(stretch < 0.1, "{method:?} {name}: {stretch}");
     }
 }
 

@@ -33,27 +33,25 @@ pub struct CapeRow {
     pub clean: bool,
 }
 
-/// The methods of the table: `stiff` as a game gets it, `stiff` without its
-/// refinement near colliders, both with chains solved whole
-/// ([`XpbdSolver::chains`]), and `pd`.
+/// The methods of the table: `stiff` as a game gets it (refined up to 16×
+/// near colliders), with its refinement capped at 4× and without it, the
+/// same three with chains solved whole ([`XpbdSolver::chains`]), and `pd`.
 fn methods() -> Vec<(String, AnyMethod)> {
-    let stiff = XpbdSolver::STIFF;
     let pd = bevy_cloth::methods::preset("pd").map(|p| p.method);
-    let mut m = vec![
-        ("stiff".to_string(), AnyMethod::Xpbd(stiff)),
-        (
-            "stiff, no refinement".to_string(),
+    let mut m = Vec::new();
+    for chains in [false, true] {
+        let stiff = XpbdSolver::STIFF.with_chains(chains);
+        let name = if chains { "stiff, chains" } else { "stiff" };
+        m.push((name.to_string(), AnyMethod::Xpbd(stiff)));
+        m.push((
+            format!("{name}, refinement ≤ 4"),
+            AnyMethod::Xpbd(stiff.with_max_refinement(4)),
+        ));
+        m.push((
+            format!("{name}, no refinement"),
             AnyMethod::Xpbd(stiff.with_max_refinement(1)),
-        ),
-    ];
-    m.push((
-        "stiff, chains".to_string(),
-        AnyMethod::Xpbd(stiff.with_chains(true)),
-    ));
-    m.push((
-        "stiff, chains, no refinement".to_string(),
-        AnyMethod::Xpbd(stiff.with_chains(true).with_max_refinement(1)),
-    ));
+        ));
+    }
     m.extend(pd.map(|pd| ("pd".to_string(), pd)));
     m
 }

@@ -565,7 +565,8 @@ fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) {
         w,
         "Issue O's target for a 4,000-vertex cape is 0.5 ms per step and 2 % stretch with \
          nothing inside the body; \"stiff\" keeps the body clear, and its cost is its \
-         refinement near colliders (the body is always near). With chains \
+         refinement near colliders (the body is always near: up to 16× its substeps in the \
+         preset, at most 4× in the rows that say so, none in the rows without). With chains \
          (`XpbdSolver::chains`) each substep solves the cape's rows, columns and diagonal \
          lines of stretch springs whole before its sweep, eight chains that share no \
          vertex at a time, so a pull passes along them at once (a 64² grid's step, 16 \

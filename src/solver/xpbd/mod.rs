@@ -120,7 +120,10 @@ pub struct XpbdSolver {
     /// comes near a collider (see [`XpbdSolver::refinement`]) takes
     /// `2^⌈log₂ κ⌉` times its substeps, up to this many. A cloth far
     /// from every collider, and cloth with `κ ≤ 1` (the lab's, and
-    /// cotton at 16² and coarser), pays nothing.
+    /// cotton at 16² and coarser), pays nothing. A character's garments
+    /// are always near the body's capsules and pay it in every step: the
+    /// perf page's "Character cloth" section compares 16 (the preset), 4
+    /// and 1 on the cape scene, and the README says which to choose.
     pub max_refinement: u32,
     /// Whether boxes push the cloth's edges in every substep, not only its
     /// vertices (see [`collision::swept`](crate::collision::swept)): cloth
