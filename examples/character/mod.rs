@@ -76,7 +76,8 @@ pub const ANIM_DRIVE: f32 = 0.5;
 /// refinement in every step; the perf page's "Character cloth" section
 /// measures this scene's 640-vertex cape at a quarter of the preset's step
 /// with both garments' stretch within a point of it (a 4,000-vertex cape
-/// needs the preset's 16×; `--method stiff` runs the preset).
+/// needs the preset's 16×, and so does self-colliding cloth, as the drape
+/// scene's; `--method stiff` runs the preset).
 pub const GARMENT_METHOD: AnyMethod = AnyMethod::Xpbd(XpbdSolver::STIFF.with_max_refinement(4));
 
 impl Default for CapeSettings {
