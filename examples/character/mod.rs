@@ -70,15 +70,15 @@ pub struct CapeSettings {
 /// The anim drive's share of the way to the skin per second, when on.
 pub const ANIM_DRIVE: f32 = 0.5;
 
-/// The garments' method unless one is chosen: `stiff` with its refinement
-/// near colliders capped at 4× its substeps (the preset's is 16×). The
-/// garments are always near the body's capsules, so they pay the
-/// refinement in every step; the perf page's "Character cloth" section
-/// measures this scene's 640-vertex cape at a quarter of the preset's step
-/// with both garments' stretch within a point of it (a 4,000-vertex cape
-/// needs the preset's 16×, and so does self-colliding cloth, as the drape
-/// scene's; `--method stiff` runs the preset).
-pub const GARMENT_METHOD: AnyMethod = AnyMethod::Xpbd(XpbdSolver::STIFF.with_max_refinement(4));
+/// The garments' method unless one is chosen: the library's
+/// [`XpbdSolver::GARMENT`], `stiff` with its refinement near colliders
+/// capped at 4× its substeps (the preset's is 16×). The perf page's
+/// "Character cloth" section measures this scene's 640-vertex cape at a
+/// quarter of the preset's step with both garments' stretch within a point
+/// of it (a 4,000-vertex cape needs the preset's 16×, and so does
+/// self-colliding cloth, as the drape scene's; `--method stiff` runs the
+/// preset).
+pub const GARMENT_METHOD: AnyMethod = AnyMethod::Xpbd(XpbdSolver::GARMENT);
 
 impl Default for CapeSettings {
     fn default() -> Self {

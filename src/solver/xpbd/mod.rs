@@ -168,6 +168,18 @@ impl XpbdSolver {
     /// collider.
     pub const STIFF: Self = Self::new(960);
 
+    /// `stiff` for a character's garments: [`STIFF`](Self::STIFF) with its
+    /// refinement near colliders capped at 4×
+    /// ([`max_refinement`](Self::max_refinement)). A garment is always near
+    /// its body's capsules, so it pays the refinement in every step; a
+    /// garment of a few hundred vertices keeps about the preset's stretch
+    /// at a quarter of its substeps. A finer garment (thousands of
+    /// vertices) stretches about three times as far with the cap, and
+    /// self-colliding cloth goes through itself: both need the preset's
+    /// 16× (the perf page's "Character cloth" section and
+    /// `docs/measurements.md`).
+    pub const GARMENT: Self = Self::STIFF.with_max_refinement(4);
+
     /// With `substep_rate` substeps per second, tethers, and refinement near
     /// colliders up to 16×.
     pub const fn new(substep_rate: u32) -> Self {
