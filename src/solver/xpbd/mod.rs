@@ -65,6 +65,7 @@
 //! same solids to the projection after the step (which then finds nothing
 //! left to do here).
 
+mod bound;
 mod chains;
 mod colouring;
 #[cfg(test)]
@@ -75,6 +76,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
+use self::bound::{Bound, Solids, project};
 use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
@@ -386,7 +388,7 @@ impl Method for XpbdSolver {
         ws.moving.clear();
         ws.moving.extend_from_slice(&ws.solids);
         ws.bounds.clear();
-        ws.bounds.extend(ws.solids.iter().map(bound));
+        ws.bounds.extend(ws.solids.iter().map(Bound::of));
         let contacts = &ws.solids[..];
         // The projection's boxes (and, with self-collision, its smooth
         // solids) push the cloth's edges too; the penalty solids (last) its
@@ -618,7 +620,7 @@ impl Method for XpbdSolver {
                 {
                     if *motion != Vec3A::ZERO {
                         *now = end.translated(-behind * *motion);
-                        *b = bound(now);
+                        *b = Bound::of(now);
                     }
                 }
             }
@@ -650,7 +652,7 @@ impl Method for XpbdSolver {
                 ws.shift.clear();
                 ws.shift.resize(ws.solids.len(), Vec3A::ZERO);
                 ws.bounds.clear();
-                ws.bounds.extend(ws.solids.iter().map(bound));
+                ws.bounds.extend(ws.solids.iter().map(Bound::of));
                 let solids = (&ws.solids[..], &ws.bounds[..], &ws.shift[..]);
                 for _ in 0..SETTLE_PASSES {
                     for (start, &x) in prev.iter_mut().zip(x.iter()) {
@@ -731,7 +733,7 @@ fn plain_pass(
 /// Whether the cloth's swept box over the step (its positions and where
 /// its velocities take them in `dt`, grown by the fall `|g| dt²` and a
 /// hundredth of its size) comes within reach of any of `solids`: the box
-/// against a plane, or against a sphere around the solid ([`bound`]).
+/// against a plane, or against a sphere around the solid ([`Bound`]).
 fn near_any(
     x: &[Vec3A],
     v: &[Vec3A],
@@ -755,7 +757,7 @@ fn near_any(
     let (lo, hi) = (lo - margin, hi + margin);
     solids
         .into_iter()
-        .any(|shape| match (shape, bound(&shape)) {
+        .any(|shape| match (shape, Bound::of(&shape).sphere()) {
             (Shape::Plane(p), _) => {
                 // The box's corner deepest along the inward normal.
                 let deepest = Vec3A::select(p.normal.cmplt(Vec3A::ZERO), hi, lo);
@@ -764,54 +766,6 @@ fn near_any(
             (_, Some((centre, r2))) => centre.clamp(lo, hi).distance_squared(centre) <= r2,
             (_, None) => true,
         })
-}
-
-/// A solid's quick test: see [`bound`].
-type Bound = Option<(Vec3A, f32)>;
-
-/// A sphere around a solid (centre and squared radius) that a point must be
-/// inside to touch it: a quick test before the exact one; `None` for a
-/// plane.
-fn bound(shape: &Shape) -> Bound {
-    match *shape {
-        Shape::Plane(_) => None,
-        Shape::Capsule(c) => {
-            let r = 0.5 * c.a.distance(c.b) + c.radius;
-            Some((0.5 * (c.a + c.b), r * r * 1.0001))
-        }
-        Shape::Cuboid(b) => Some((b.center, b.half_extents.length_squared() * 1.0001)),
-    }
-}
-
-/// The solids a substep projects the cloth out of: the shapes where they
-/// are, their [`bound`]s, and each one's motion over the substep.
-type Solids<'a> = (&'a [Shape], &'a [Bound], &'a [Vec3A]);
-
-/// Moves `x` out of every solid it is inside, with position-based Coulomb
-/// friction on its motion since `prev` (the substep's start) relative to
-/// the solid's, and says whether it was inside one.
-fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds, shifts): Solids<'_>) -> bool {
-    let mut touched = false;
-    for ((shape, bound), &shift) in shapes.iter().zip(bounds).zip(shifts) {
-        if bound.is_some_and(|(centre, r2)| x.distance_squared(centre) > r2) {
-            continue;
-        }
-        let Some((normal, depth)) = shape.contact(*x, 0.0) else {
-            continue;
-        };
-        touched = true;
-        *x += depth * normal;
-        let mu = shape.friction();
-        if mu > 0.0 {
-            let moved = *x - prev - shift;
-            let tangential = moved - moved.dot(normal) * normal;
-            let length = tangential.length();
-            if length > 0.0 {
-                *x -= tangential * ((mu * depth).min(length) / length);
-            }
-        }
-    }
-    touched
 }
 
 /// Scratch buffers of the XPBD solver, sized on first use.
@@ -836,7 +790,7 @@ pub struct XpbdWorkspace {
     shift: Vec<Vec3A>,
     /// Per projected solid, the cloth's edges it may meet this step.
     edges: Vec<Vec<u32>>,
-    /// Per solid, its quick test ([`bound`]).
+    /// Per solid, its quick test ([`Bound`]).
     bounds: Vec<Bound>,
     /// Each vertex's nearest pin and rest distance (taken once per topology
     /// and pins).
