@@ -671,3 +671,78 @@ fn painted_max_distance_and_backstop_come_from_the_mesh_welded_or_not() {
     short.insert_attribute(ATTRIBUTE_CLOTH_BACKSTOP, vec![0.02f32; 3]);
     assert_eq!(free.with_painted(&short, &model), Err(SkinError::Mesh));
 }
+
+/// The skin's hold without a square root where the squared distance
+/// decides ([`SkinInput::hold_with`]) moves every vertex as the plain
+/// formula does (a unit normal, the distance's square root compared),
+/// bit for bit, at points on both sides of the backstop sphere and of the
+/// max distance within a few units in the last place, and further.
+#[test]
+fn the_skin_s_hold_is_the_plain_formula_bit_for_bit() {
+    fn plain(input: &SkinInput<'_>, i: usize, skin: Vec3A, x: &mut Vec3A) -> bool {
+        let normal = input.normals[i];
+        let mut moved = false;
+        let radius = input.backstop_radius;
+        let centre = skin - (input.backstop_distance[i] + radius) * normal.normalize_or_zero();
+        let d = *x - centre;
+        let l = d.length();
+        if l < radius {
+            *x = centre + radius * if l > 0.0 { d / l } else { normal };
+            moved = true;
+        }
+        let max = input.max_distance[i];
+        let d = *x - skin;
+        let l = d.length();
+        if l > max {
+            *x = skin + d * (max / l);
+            moved = true;
+        }
+        moved
+    }
+    let skin = [Vec3A::new(0.3, 1.2, -0.1), Vec3A::new(100.0, 0.9, 7.0)];
+    let normals = [Vec3A::new(0.0, 0.2, 2.0), Vec3A::new(-1.0, 0.0, 0.1)];
+    let (max_distance, backstop_distance) = ([0.25, 0.6], [0.02, 0.0]);
+    let input = SkinInput {
+        positions: &skin,
+        previous: None,
+        normals: &normals,
+        max_distance: &max_distance,
+        backstop_distance: &backstop_distance,
+        backstop_radius: 0.4,
+        tether_scale: f32::INFINITY,
+    };
+    let (mut checked, mut moved) = (0, 0);
+    for i in 0..2 {
+        let unit = normals[i].normalize_or_zero();
+        let centre = skin[i] - (backstop_distance[i] + 0.4) * unit;
+        for k in 0..3000 {
+            let u = (k as f32 + 0.5) / 3000.0;
+            let (phi, z) = (k as f32 * 2.399_963, 1.0 - 2.0 * u);
+            let ring = (1.0 - z * z).max(0.0).sqrt();
+            let dir = Vec3A::new(ring * phi.cos(), z, ring * phi.sin());
+            for scale in [0.5, 0.999_999, 1.0 - 1e-7, 1.0, 1.0 + 1e-7, 1.000_001, 1.5] {
+                for start in [
+                    centre + dir * (0.4 * scale),
+                    skin[i] + dir * (max_distance[i] * scale),
+                ] {
+                    let (mut a, mut b) = (start, start);
+                    let got = input.hold_with(i, skin[i], unit, &mut a);
+                    let want = plain(&input, i, skin[i], &mut b);
+                    assert_eq!(
+                        (got, a.to_array().map(f32::to_bits)),
+                        (want, b.to_array().map(f32::to_bits)),
+                        "{start:?}"
+                    );
+                    assert_eq!(input.hold_at(i, skin[i], &mut start.clone()), want);
+                    checked += 1;
+                    moved += usize::from(want);
+                }
+            }
+        }
+    }
+    // Both sides were met.
+    assert!(
+        moved > checked / 10 && moved < checked * 9 / 10,
+        "{moved} of {checked}"
+    );
+}

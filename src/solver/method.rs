@@ -99,26 +99,48 @@ impl SkinInput<'_> {
     /// [`hold`](Self::hold) with the skin of vertex `i` at `skin`.
     #[inline]
     pub fn hold_at(&self, i: usize, skin: Vec3A, x: &mut Vec3A) -> bool {
-        let normal = self.normals[i];
+        self.hold_with(i, skin, self.normals[i].normalize_or_zero(), x)
+    }
+
+    /// [`hold_at`](Self::hold_at) with vertex `i`'s normal already made unit
+    /// (`normals[i].normalize_or_zero()`), as a method with substeps keeps
+    /// it through its step. The same result bit for bit: a vertex whose
+    /// squared distance says, with room for its rounding, that it is
+    /// outside its backstop sphere or within its max distance is left
+    /// without a square root.
+    #[inline]
+    pub fn hold_with(&self, i: usize, skin: Vec3A, unit_normal: Vec3A, x: &mut Vec3A) -> bool {
+        /// Room for the rounding of a squared length against a squared
+        /// radius (each within a few units in the last place).
+        const ROOM: f32 = 1e-5;
         let (max, backstop) = (self.max_distance[i], self.backstop_distance[i]);
         let mut moved = false;
         if backstop.is_finite() {
             let radius = self.backstop_radius;
-            let centre = skin - (backstop + radius) * normal.normalize_or_zero();
+            let centre = skin - (backstop + radius) * unit_normal;
             let d = *x - centre;
-            let l = d.length();
-            if l < radius {
-                let out = if l > 0.0 { d / l } else { normal };
-                *x = centre + radius * out;
-                moved = true;
+            let l2 = d.length_squared();
+            // `length` is the square root of this same `length_squared`;
+            // a NaN is not surely outside.
+            let surely_outside = l2 >= radius * radius * (1.0 + ROOM);
+            if !surely_outside {
+                let l = d.length();
+                if l < radius {
+                    let out = if l > 0.0 { d / l } else { self.normals[i] };
+                    *x = centre + radius * out;
+                    moved = true;
+                }
             }
         }
         if max.is_finite() {
             let d = *x - skin;
-            let l = d.length();
-            if l > max {
-                *x = skin + d * (max / l);
-                moved = true;
+            let surely_within = d.length_squared() <= max * max * (1.0 - ROOM);
+            if !surely_within {
+                let l = d.length();
+                if l > max {
+                    *x = skin + d * (max / l);
+                    moved = true;
+                }
             }
         }
         moved

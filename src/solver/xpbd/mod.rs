@@ -434,8 +434,11 @@ impl Method for XpbdSolver {
         // pins do, unless a vertex's skin jumped (a teleport).
         let skin_start = skin.and_then(|s| s.previous).filter(|p| p.len() >= n);
         ws.skin_now.clear();
+        ws.skin_normals.clear();
         if let Some(s) = skin {
             ws.skin_now.extend_from_slice(&s.positions[..n]);
+            ws.skin_normals
+                .extend(s.normals[..n].iter().map(|n| n.normalize_or_zero()));
         }
         let skin_tethers = skin.map_or(f32::INFINITY, |s| s.tether_scale);
         let tethered = (self.tethers || skin_tethers.is_finite()) && !model.pins().is_empty() && {
@@ -494,7 +497,7 @@ impl Method for XpbdSolver {
         let pass = |x: &mut [Vec3A],
                     v: &mut [Vec3A],
                     prev: &mut [[Vec3A; 2]],
-                    (anchors, skin_now): (&[Vec3A], &[Vec3A]),
+                    (anchors, skin_now, skin_normals): (&[Vec3A], &[Vec3A], &[Vec3A]),
                     solids: Solids<'_>,
                     end: bool,
                     begin: bool| {
@@ -530,7 +533,7 @@ impl Method for XpbdSolver {
                         hold(x, anchors[place as usize], rest * slack);
                     }
                     if let Some(skin) = &skin {
-                        skin.hold_at(i, skin_now[i], x);
+                        skin.hold_with(i, skin_now[i], skin_normals[i], x);
                     }
                     touching += u32::from(project(x, p[0], solids));
                 }
@@ -547,7 +550,7 @@ impl Method for XpbdSolver {
             ws.self_contacts
                 .find(model, x, v, params.dt as f32, sc, params.fall());
         }
-        pass(x, v, prev, (&[], &[]), (&[], &[], &[]), false, true);
+        pass(x, v, prev, (&[], &[], &[]), (&[], &[], &[]), false, true);
         // Chains of stretch springs solved whole before each sweep.
         let chain_compliance = if self.chains {
             ws.chains.update(model);
@@ -633,7 +636,7 @@ impl Method for XpbdSolver {
                     x,
                     v,
                     prev,
-                    (&ws.anchors, &ws.skin_now),
+                    (&ws.anchors, &ws.skin_now, &ws.skin_normals),
                     (&ws.moving, &ws.bounds, &ws.shift),
                     true,
                     substep < substeps,
@@ -802,6 +805,8 @@ pub struct XpbdWorkspace {
     pin_paths: Vec<(Vec3A, Vec3A)>,
     /// A character cloth's skinned positions at the current substep.
     skin_now: Vec<Vec3A>,
+    /// Its unit normals, made once per step.
+    skin_normals: Vec<Vec3A>,
     /// Self-collision's pairs for the step.
     self_contacts: SelfContacts,
     /// Self-collision's check for edges through the cloth after the step.
