@@ -5,6 +5,7 @@
 //! cargo run --release -p bevy_cloth_report -- --stability [--out docs/report] [--tiny]
 //! cargo run --release -p bevy_cloth_report -- --contact [--out docs/report] [--tiny] [--only NAME]
 //! cargo run --release -p bevy_cloth_report -- --perf [--out docs] [--tiny] [--sizes 21,51] [--only NAME] [--seconds S]
+//! cargo run --release -p bevy_cloth_report -- --perf --section character|self-collision [--out docs] [--tiny]
 //! ```
 //!
 //! With no mode: the error-against-run-time report (`README.md` and SVG
@@ -25,7 +26,8 @@ use bevy_cloth_report::perf::{self, PerfConfig};
 use bevy_cloth_report::stability::{self, StabilityConfig};
 
 const USAGE: &str = "usage: bevy_cloth_report [--stability | --contact | --perf] [--out DIR] [--tiny] \
-                     [--sizes 21,51] [--only NAME] [--seconds S] (--only: --perf or --contact)";
+                     [--sizes 21,51] [--only NAME] [--seconds S] [--section character|self-collision] \
+                     (--only: --perf or --contact; --section: --perf)";
 
 #[derive(PartialEq)]
 enum Mode {
@@ -42,6 +44,7 @@ struct Options {
     sizes: Option<Vec<usize>>,
     only: Option<String>,
     seconds: Option<f64>,
+    section: Option<String>,
 }
 
 /// Why the command line was not run: `--help`, or what is wrong.
@@ -71,6 +74,7 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
         sizes: None,
         only: None,
         seconds: None,
+        section: None,
     };
     while let Some(arg) = parser.next()? {
         match arg {
@@ -93,6 +97,17 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
                 o.sizes = Some(list);
             }
             Long("only") => o.only = Some(parser.value()?.string()?),
+            Long("section") => {
+                let name = parser.value()?.string()?;
+                if !perf::SECTIONS.iter().any(|(n, _)| *n == name) {
+                    let names: Vec<_> = perf::SECTIONS.iter().map(|(n, _)| *n).collect();
+                    return Err(Stop::Bad(format!(
+                        "--section: one of {}",
+                        names.join(", ")
+                    )));
+                }
+                o.section = Some(name);
+            }
             Long("seconds") => match parser.value()?.parse::<f64>() {
                 Ok(s) if s > 0.0 && s.is_finite() => o.seconds = Some(s),
                 _ => return Err(Stop::Bad("--seconds needs a positive number".into())),
@@ -106,6 +121,11 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
     }
     if o.only.is_some() && !matches!(o.mode, Mode::Perf | Mode::Contact) {
         return Err(Stop::Bad("--only goes with --perf or --contact".into()));
+    }
+    if o.section.is_some() && (o.mode != Mode::Perf || o.only.is_some() || o.sizes.is_some()) {
+        return Err(Stop::Bad(
+            "--section goes with --perf, without --only or --sizes".into(),
+        ));
     }
     Ok(o)
 }
@@ -164,6 +184,12 @@ fn main() -> ExitCode {
             if let Some(s) = o.seconds {
                 config.budget = Duration::from_secs_f64(s);
             }
+            if let Some(name) = o.section {
+                return finish(
+                    perf::rerun_section(&config, &name)
+                        .map(|_| format!("rewrote the {name} section of {out}/perf.md")),
+                );
+            }
             let profiling = o.only.is_some();
             config.only = o.only;
             let start = Instant::now();
@@ -179,6 +205,11 @@ fn main() -> ExitCode {
             })
         }
     };
+    finish(result)
+}
+
+/// Prints what a run wrote, or its error, and the exit code.
+fn finish(result: std::io::Result<String>) -> ExitCode {
     match result {
         Ok(message) => {
             println!("{message}");

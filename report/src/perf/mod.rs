@@ -29,12 +29,14 @@ mod character;
 #[allow(unsafe_code)]
 mod machine;
 mod page;
+mod sections;
 mod self_collision;
 mod sweep;
 
 pub use character::{CapeRow, cape_rows};
 pub use machine::{Caches, Limits, limits, work_per_iteration};
 pub use page::run;
+pub use sections::{SECTIONS, rerun_section};
 pub use self_collision::{SelfCollisionRow, TwoSheetsRow, self_collision_rows, two_sheets_rows};
 pub use sweep::{
     Case, CgParts, FrameCosts, SWEEP_ROUNDS, SimdRow, SphereRow, cg_parts, frame_costs,

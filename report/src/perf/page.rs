@@ -485,7 +485,9 @@ pub fn run(config: &PerfConfig, progress: impl Fn(&str)) -> std::io::Result<Stri
         w,
         "`bash scripts/perf.sh` (about 15 minutes on this machine, the first time longer: it \
          builds bevy_silk's Bevy) reruns the bevy_silk comparison and then this page; \
-         `cargo run --release -p bevy_cloth_report -- --perf` reruns this page alone. The criterion \
+         `cargo run --release -p bevy_cloth_report -- --perf` reruns this page alone, and \
+         `-- --perf --section character` (or `self-collision`) one section of it, in place, \
+         marked as rerun on its own. The criterion \
          benchmarks (`cargo bench`) time the same steps at 21² and 101²."
     )
     .ok();
@@ -525,7 +527,7 @@ fn chart(path: &Path, cases: &[Case]) -> Result<(), String> {
 }
 
 /// The character scene's table (see [`cape_rows`]).
-fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) {
+pub(super) fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) {
     writeln!(w, "## Character cloth").ok();
     writeln!(w).ok();
     writeln!(
@@ -578,7 +580,7 @@ fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) {
 }
 
 /// The self-collision table (see [`self_collision_rows`]).
-fn self_collision_section(w: &mut String, rows: &[SelfCollisionRow]) {
+pub(super) fn self_collision_section(w: &mut String, rows: &[SelfCollisionRow]) {
     writeln!(w, "## Self-collision").ok();
     writeln!(w).ok();
     writeln!(
@@ -635,7 +637,7 @@ fn self_collision_section(w: &mut String, rows: &[SelfCollisionRow]) {
 }
 
 /// The cloth-against-cloth table (see [`two_sheets_rows`]).
-fn two_sheets_section(w: &mut String, rows: &[TwoSheetsRow]) {
+pub(super) fn two_sheets_section(w: &mut String, rows: &[TwoSheetsRow]) {
     writeln!(w, "### Cloth against cloth").ok();
     writeln!(w).ok();
     writeln!(
