@@ -101,10 +101,7 @@ fn parse(mut parser: lexopt::Parser) -> Result<Options, Stop> {
                 let name = parser.value()?.string()?;
                 if !perf::SECTIONS.iter().any(|(n, _)| *n == name) {
                     let names: Vec<_> = perf::SECTIONS.iter().map(|(n, _)| *n).collect();
-                    return Err(Stop::Bad(format!(
-                        "--section: one of {}",
-                        names.join(", ")
-                    )));
+                    return Err(Stop::Bad(format!("--section: one of {}", names.join(", "))));
                 }
                 o.section = Some(name);
             }

@@ -577,6 +577,64 @@ pub(super) fn character_section(w: &mut String, rows: &[CapeRow], steps: usize) 
     )
     .ok();
     writeln!(w).ok();
+    character_reading(w, rows);
+}
+
+/// What the character table says about the refinement's cap and issue O's
+/// budget, read off its rows (so a rerun keeps it true).
+fn character_reading(w: &mut String, rows: &[CapeRow]) {
+    let row = |vertices: usize, method: &str| {
+        rows.iter()
+            .find(|r| r.vertices == vertices && r.method == method)
+    };
+    let percent = |s: f32| format!("{:.1} %", 100.0 * s);
+    let mut sizes: Vec<usize> = rows.iter().map(|r| r.vertices).collect();
+    sizes.dedup();
+    let mut parts = Vec::new();
+    for &v in &sizes {
+        if let (Some(p), Some(g)) = (row(v, "stiff"), row(v, "stiff, refinement ≤ 4")) {
+            parts.push(format!(
+                "at {v} vertices to {:.2} of the preset's step ({} against {}), its stretch \
+                 {} in the cape and {} in the skirt against {} and {}",
+                g.step.median / p.step.median,
+                human(g.step.median),
+                human(p.step.median),
+                percent(g.stretch.0),
+                percent(g.stretch.1),
+                percent(p.stretch.0),
+                percent(p.stretch.1),
+            ));
+        }
+    }
+    if !parts.is_empty() {
+        writeln!(
+            w,
+            "Capping the refinement near colliders at 4× (`XpbdSolver::GARMENT`, the cape \
+             example's garments and the settings panel's refinement slider) takes the cape {}.",
+            parts.join("; ")
+        )
+        .ok();
+        writeln!(w).ok();
+    }
+    let stiff = bevy_cloth::XpbdSolver::STIFF;
+    let most = stiff.substeps(1.0 / 60.0) * stiff.max_refinement;
+    if let Some(p) = sizes.last().and_then(|&v| row(v, "stiff")) {
+        let per = p.step.median / (p.vertices as f64 * f64::from(most));
+        writeln!(
+            w,
+            "Issue O's 0.5 ms at 4,000 vertices: the preset's row at {} vertices takes at \
+             least {:.0} ns per vertex and substep (at most {most} substeps a step, {} refined \
+             up to {}×), so 0.5 ms buys about {:.0} substeps a step of that cape, where every \
+             row within 5 % stretch refines.",
+            p.vertices,
+            per * 1e9,
+            stiff.substeps(1.0 / 60.0),
+            stiff.max_refinement,
+            0.5e-3 / (per * p.vertices as f64),
+        )
+        .ok();
+        writeln!(w).ok();
+    }
 }
 
 /// The self-collision table (see [`self_collision_rows`]).

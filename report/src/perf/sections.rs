@@ -84,11 +84,17 @@ mod tests {
         assert!(!page.contains("old rows"), "{page}");
         assert!(page.contains("| cape vertices | method |"), "{page}");
         assert!(page.contains("rerun on its own (`--perf --section character`)"));
-        assert!(page.ends_with("\n\n## Self-collision\n\nkept rows\n"), "{page}");
+        assert!(
+            page.ends_with("\n\n## Self-collision\n\nkept rows\n"),
+            "{page}"
+        );
         // An unknown section, and a page without the heading: errors, the
         // page unchanged.
         let err = rerun_section(&config, "capes").unwrap_err();
-        assert!(err.to_string().contains("character, self-collision"), "{err}");
+        assert!(
+            err.to_string().contains("character, self-collision"),
+            "{err}"
+        );
         std::fs::write(&path, "# Performance\n").unwrap();
         assert!(rerun_section(&config, "self-collision").is_err());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "# Performance\n");

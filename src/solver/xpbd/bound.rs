@@ -10,6 +10,13 @@
 //! grown by a margin larger than that distance's rounding: a vertex it
 //! turns away is outside the capsule, where the exact test finds nothing,
 //! so the projection is the same bit for bit.
+//!
+//! In the substeps the quick tests run over the whole cloth at once
+//! ([`Near`]): after the tethers and the skin have held every vertex, each
+//! solid's test runs over columns of the coordinates, which the compiler
+//! vectorises, and leaves a bit per vertex and solid; the pass that follows
+//! runs the exact test only where a bit is set ([`project_near`]). The
+//! results are [`project`]'s, bit for bit (a test compares them).
 
 use bevy::math::Vec3A;
 
@@ -113,25 +120,129 @@ pub(super) type Solids<'a> = (&'a [Shape], &'a [Bound], &'a [Vec3A]);
 pub(super) fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds, shifts): Solids<'_>) -> bool {
     let mut touched = false;
     for ((shape, bound), &shift) in shapes.iter().zip(bounds).zip(shifts) {
-        if bound.outside(*x) {
-            continue;
-        }
-        let Some((normal, depth)) = shape.contact(*x, 0.0) else {
-            continue;
-        };
-        touched = true;
-        *x += depth * normal;
-        let mu = shape.friction();
-        if mu > 0.0 {
-            let moved = *x - prev - shift;
-            let tangential = moved - moved.dot(normal) * normal;
-            let length = tangential.length();
-            if length > 0.0 {
-                *x -= tangential * ((mu * depth).min(length) / length);
-            }
+        if !bound.outside(*x) {
+            touched |= push_out(x, prev, shape, shift);
         }
     }
     touched
+}
+
+/// [`project`] with the first 32 solids' quick tests taken from `near`,
+/// [`Near`]'s mask for `x` where it is (bit `k` clear: solid `k` turned it
+/// away). Once a solid has moved `x`, the others' are taken at its new
+/// place, as [`project`] takes them.
+pub(super) fn project_near(
+    x: &mut Vec3A,
+    prev: Vec3A,
+    (shapes, bounds, shifts): Solids<'_>,
+    near: u32,
+) -> bool {
+    if near == 0 && shapes.len() <= 32 {
+        return false;
+    }
+    let mut touched = false;
+    for (k, ((shape, bound), &shift)) in shapes.iter().zip(bounds).zip(shifts).enumerate() {
+        let turned_away = if touched || k >= 32 {
+            bound.outside(*x)
+        } else {
+            near & (1 << k) == 0
+        };
+        if !turned_away {
+            touched |= push_out(x, prev, shape, shift);
+        }
+    }
+    touched
+}
+
+/// Moves `x` out of `shape` if it is inside, with friction (see
+/// [`project`]); says whether it was.
+#[inline]
+fn push_out(x: &mut Vec3A, prev: Vec3A, shape: &Shape, shift: Vec3A) -> bool {
+    let Some((normal, depth)) = shape.contact(*x, 0.0) else {
+        return false;
+    };
+    *x += depth * normal;
+    let mu = shape.friction();
+    if mu > 0.0 {
+        let moved = *x - prev - shift;
+        let tangential = moved - moved.dot(normal) * normal;
+        let length = tangential.length();
+        if length > 0.0 {
+            *x -= tangential * ((mu * depth).min(length) / length);
+        }
+    }
+    true
+}
+
+/// The first 32 solids' quick tests over a whole cloth at once, a solid at
+/// a time over arrays of the coordinates, which the compiler vectorises
+/// (one vertex and one solid at a time, each test a chain of horizontal
+/// sums, they were the largest part of a cape's step: see
+/// `docs/measurements.md`). A capsule's is its distance to the axis alone
+/// (the sphere in front of it in [`Bound::outside`] turns away nothing it
+/// would not), computed as [`Bound::outside`] computes it, a cuboid's its
+/// sphere, a plane's nothing.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Near {
+    /// The vertices' coordinates, a column each.
+    xyz: [Vec<f32>; 3],
+    /// Per vertex, bit `k` set unless solid `k` turned it away.
+    masks: Vec<u32>,
+}
+
+impl Near {
+    /// The masks for the cloth at `x`, against the solids of `bounds`.
+    pub(super) fn update(&mut self, x: &[Vec3A], bounds: &[Bound]) {
+        let [xs, ys, zs] = &mut self.xyz;
+        for column in [&mut *xs, &mut *ys, &mut *zs] {
+            column.resize(x.len(), 0.0);
+        }
+        for (p, ((x, y), z)) in x
+            .iter()
+            .zip(xs.iter_mut().zip(ys.iter_mut()).zip(zs.iter_mut()))
+        {
+            (*x, *y, *z) = (p.x, p.y, p.z);
+        }
+        self.masks.clear();
+        self.masks.resize(x.len(), 0);
+        let columns = || xs.iter().zip(ys.iter()).zip(zs.iter());
+        for (k, bound) in bounds.iter().enumerate().take(32) {
+            let bit = 1u32 << k;
+            let masks = self.masks.iter_mut();
+            match *bound {
+                Bound::Always => masks.for_each(|m| *m |= bit),
+                Bound::Sphere(c, r2) => {
+                    for (m, ((&x, &y), &z)) in masks.zip(columns()) {
+                        let (dx, dy, dz) = (x - c.x, y - c.y, z - c.z);
+                        let d2 = (dx * dx + dy * dy) + dz * dz;
+                        *m |= bit * (1 - u32::from(d2 > r2));
+                    }
+                }
+                Bound::Capsule {
+                    a,
+                    axis,
+                    inv,
+                    reach2,
+                    ..
+                } => {
+                    for (m, ((&x, &y), &z)) in masks.zip(columns()) {
+                        let (dx, dy, dz) = (x - a.x, y - a.y, z - a.z);
+                        let along = ((dx * axis.x + dy * axis.y) + dz * axis.z) * inv;
+                        let t = along.clamp(0.0, 1.0);
+                        let (ex, ey, ez) = (dx - t * axis.x, dy - t * axis.y, dz - t * axis.z);
+                        let d2 = (ex * ex + ey * ey) + ez * ez;
+                        *m |= bit * (1 - u32::from(d2 > reach2));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Vertex `i`'s mask.
+    #[inline]
+    pub(super) fn mask(&self, i: usize) -> u32 {
+        self.masks[i]
+    }
 }
 
 #[cfg(test)]
@@ -200,5 +311,75 @@ mod tests {
             }))
             .outside(Vec3A::NAN)
         );
+    }
+
+    /// `project_near` with `Near`'s masks is `project`, bit for bit, over
+    /// a cloud of points in and around a body of capsules, a box and the
+    /// ground (some inside two solids at once, where the second's quick
+    /// test is taken at the place the first moved the point to), and the
+    /// masks turn away only points `Bound::outside` turns away.
+    #[test]
+    fn the_quick_tests_over_the_whole_cloth_project_as_one_at_a_time() {
+        use crate::collision::{Cuboid, Plane};
+        let capsule = |a: Vec3A, b: Vec3A, radius| {
+            Shape::Capsule(Capsule {
+                a,
+                b,
+                radius,
+                friction: 0.3,
+            })
+        };
+        let shapes = [
+            capsule(Vec3A::new(0.0, 0.9, 0.0), Vec3A::new(0.0, 1.4, 0.05), 0.17),
+            capsule(Vec3A::new(0.1, 0.2, 0.0), Vec3A::new(0.1, 0.9, 0.0), 0.08),
+            capsule(Vec3A::new(0.0, 1.6, 0.0), Vec3A::new(0.0, 1.6, 0.0), 0.11),
+            Shape::Cuboid(Cuboid {
+                center: Vec3A::new(0.2, 1.0, 0.1),
+                axes: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+                half_extents: Vec3A::new(0.1, 0.2, 0.1),
+                friction: 0.5,
+            }),
+            Shape::Plane(Plane {
+                point: Vec3A::new(0.0, 0.25, 0.0),
+                normal: Vec3A::Y,
+                friction: 0.0,
+            }),
+        ];
+        let bounds: Vec<Bound> = shapes.iter().map(Bound::of).collect();
+        let shifts = [Vec3A::new(0.01, 0.0, 0.0); 5];
+        let solids = (&shapes[..], &bounds[..], &shifts[..]);
+        // A cloud over the body, from a small linear congruential generator.
+        let mut seed = 12345u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let x: Vec<Vec3A> = (0..20_000)
+            .map(|_| Vec3A::new(0.7 * next() - 0.3, 1.9 * next(), 0.6 * next() - 0.3))
+            .chain([Vec3A::NAN])
+            .collect();
+        let mut near = Near::default();
+        near.update(&x, &bounds);
+        let (mut touched, mut turned_away) = (0, 0);
+        for (i, &p) in x.iter().enumerate() {
+            for (k, bound) in bounds.iter().enumerate() {
+                if near.mask(i) & (1 << k) == 0 {
+                    turned_away += 1;
+                    assert!(bound.outside(p), "{p:?}, solid {k}");
+                }
+            }
+            let prev = p - Vec3A::new(0.0, 0.02, 0.01);
+            let (mut one, mut all) = (p, p);
+            let t = project(&mut one, prev, solids);
+            assert_eq!(project_near(&mut all, prev, solids, near.mask(i)), t);
+            assert!(
+                one.to_array().map(f32::to_bits) == all.to_array().map(f32::to_bits) || p.is_nan()
+            );
+            touched += u32::from(t);
+        }
+        // Both kinds occur: points pushed out, and quick tests that spare
+        // most of the exact ones.
+        assert!(touched > 1000, "{touched}");
+        assert!(turned_away > 3 * 20_000, "{turned_away}");
     }
 }

@@ -76,7 +76,7 @@ use bevy::math::Vec3A;
 use bevy::reflect::Reflect;
 use bevy::reflect::std_traits::ReflectDefault;
 
-use self::bound::{Bound, Solids, project};
+use self::bound::{Bound, Near, Solids, project, project_near};
 use self::colouring::{Colouring, Links};
 use self::tethers::{Tethers, hold};
 use super::{Method, ParamError, StepError, StepInput, StepReport};
@@ -499,8 +499,28 @@ impl Method for XpbdSolver {
                     prev: &mut [[Vec3A; 2]],
                     (anchors, skin_now, skin_normals): (&[Vec3A], &[Vec3A], &[Vec3A]),
                     solids: Solids<'_>,
+                    near: &mut Near,
                     end: bool,
                     begin: bool| {
+            if end && !plain && !(contacts.is_empty() && skin.is_none()) {
+                // The tethers and the skin hold each vertex first; then the
+                // solids' quick tests run over the whole cloth at once
+                // (`Near`). A vertex's steps read and write its own
+                // values only, so their order across vertices changes
+                // nothing.
+                let holding = x.iter_mut().zip(pinned).enumerate();
+                for (i, (x, _)) in holding.filter(|(_, (_, pinned))| !**pinned) {
+                    if let Some(&(place, rest)) = ties.get(i) {
+                        hold(x, anchors[place as usize], rest * slack);
+                    }
+                    if let Some(skin) = &skin {
+                        skin.hold_with(i, skin_now[i], skin_normals[i], x);
+                    }
+                }
+                if !solids.0.is_empty() {
+                    near.update(x, solids.1);
+                }
+            }
             let vertices = x.iter_mut().zip(v.iter_mut()).zip(prev.iter_mut());
             let vertices = vertices.zip(pinned.iter());
             if plain {
@@ -528,14 +548,8 @@ impl Method for XpbdSolver {
                 if pinned {
                     continue;
                 }
-                if end {
-                    if let Some(&(place, rest)) = ties.get(i) {
-                        hold(x, anchors[place as usize], rest * slack);
-                    }
-                    if let Some(skin) = &skin {
-                        skin.hold_with(i, skin_now[i], skin_normals[i], x);
-                    }
-                    touching += u32::from(project(x, p[0], solids));
+                if end && !solids.0.is_empty() {
+                    touching += u32::from(project_near(x, p[0], solids, near.mask(i)));
                 }
                 plain_pass(x, v, p, [end, begin], [inv_h, damping, h], fall);
             }
@@ -550,7 +564,16 @@ impl Method for XpbdSolver {
             ws.self_contacts
                 .find(model, x, v, params.dt as f32, sc, params.fall());
         }
-        pass(x, v, prev, (&[], &[], &[]), (&[], &[], &[]), false, true);
+        pass(
+            x,
+            v,
+            prev,
+            (&[], &[], &[]),
+            (&[], &[], &[]),
+            &mut ws.near,
+            false,
+            true,
+        );
         // Chains of stretch springs solved whole before each sweep.
         let chain_compliance = if self.chains {
             ws.chains.update(model);
@@ -638,6 +661,7 @@ impl Method for XpbdSolver {
                     prev,
                     (&ws.anchors, &ws.skin_now, &ws.skin_normals),
                     (&ws.moving, &ws.bounds, &ws.shift),
+                    &mut ws.near,
                     true,
                     substep < substeps,
                 );
@@ -795,6 +819,8 @@ pub struct XpbdWorkspace {
     edges: Vec<Vec<u32>>,
     /// Per solid, its quick test ([`Bound`]).
     bounds: Vec<Bound>,
+    /// The solids' quick tests over the whole cloth, each substep.
+    near: Near,
     /// Each vertex's nearest pin and rest distance (taken once per topology
     /// and pins).
     tethers: Tethers,
