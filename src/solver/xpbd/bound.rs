@@ -117,20 +117,15 @@ pub(super) type Solids<'a> = (&'a [Shape], &'a [Bound], &'a [Vec3A]);
 /// Moves `x` out of every solid it is inside, with position-based Coulomb
 /// friction on its motion since `prev` (the substep's start) relative to
 /// the solid's, and says whether it was inside one.
-pub(super) fn project(x: &mut Vec3A, prev: Vec3A, (shapes, bounds, shifts): Solids<'_>) -> bool {
-    let mut touched = false;
-    for ((shape, bound), &shift) in shapes.iter().zip(bounds).zip(shifts) {
-        if !bound.outside(*x) {
-            touched |= push_out(x, prev, shape, shift);
-        }
-    }
-    touched
+pub(super) fn project(x: &mut Vec3A, prev: Vec3A, solids: Solids<'_>) -> bool {
+    project_near(x, prev, solids, u32::MAX)
 }
 
-/// [`project`] with the first 32 solids' quick tests taken from `near`,
-/// [`Near`]'s mask for `x` where it is (bit `k` clear: solid `k` turned it
-/// away). Once a solid has moved `x`, the others' are taken at its new
-/// place, as [`project`] takes them.
+/// [`project`] with the first 32 solids' vectorised quick tests taken from
+/// `near`, [`Near`]'s mask for `x` where it is (bit `k` clear: solid `k`
+/// turned it away; `u32::MAX` turns none away). A solid a bit keeps, and
+/// every solid once another has moved `x`, takes its own quick test
+/// ([`Bound::outside`]) at `x` where it then is.
 pub(super) fn project_near(
     x: &mut Vec3A,
     prev: Vec3A,
@@ -142,12 +137,8 @@ pub(super) fn project_near(
     }
     let mut touched = false;
     for (k, ((shape, bound), &shift)) in shapes.iter().zip(bounds).zip(shifts).enumerate() {
-        let turned_away = if touched || k >= 32 {
-            bound.outside(*x)
-        } else {
-            near & (1 << k) == 0
-        };
-        if !turned_away {
+        let kept = touched || k >= 32 || near & (1 << k) != 0;
+        if kept && !bound.outside(*x) {
             touched |= push_out(x, prev, shape, shift);
         }
     }
